@@ -1,0 +1,63 @@
+//! `cryofit`: the one binary users run. Parses the command line and hands over to a command.
+
+mod fluid_source;
+mod props;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Cryogenic two-phase flow: chilldown simulation, calibration and parameter studies.
+#[derive(Debug, Parser)]
+#[command(
+    name = "cryofit",
+    version,
+    about = "Cryogenic two-phase flow: chilldown simulation, calibration and parameter studies."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Fluid properties at a pressure and temperature (from the built-in CoolProp tables).
+    Props(props::PropsArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                let _ = e.print();
+                return if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                    ExitCode::from(2)
+                } else {
+                    ExitCode::SUCCESS
+                };
+            }
+            // one line: clap's first paragraph names the argument and the problem
+            let text = e.render().to_string();
+            let first: Vec<&str> = text.lines().map(str::trim).take_while(|l| !l.is_empty()).collect();
+            eprintln!("{} (see 'cryofit --help')", first.join(" "));
+            return ExitCode::from(2);
+        }
+    };
+    let result = match cli.command {
+        Command::Props(args) => props::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,109 @@
+//! `cryofit props` end to end: the real binary, its JSON contract and its errors.
+
+use std::process::{Command, Output};
+
+fn cryofit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().expect("run cryofit")
+}
+
+#[test]
+fn liquid_nitrogen_at_one_atmosphere() {
+    let out = cryofit(&["props", "nitrogen", "--p", "101325", "--t", "77", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let keys: Vec<&str> = v.as_object().unwrap().keys().map(String::as_str).collect();
+    let mut want = vec![
+        "fluid",
+        "phase",
+        "pressure_pa",
+        "temperature_k",
+        "density_kg_m3",
+        "specific_enthalpy_j_kg",
+        "specific_internal_energy_j_kg",
+        "cp_j_kg_k",
+        "viscosity_pa_s",
+        "conductivity_w_m_k",
+        "t_sat_k",
+    ];
+    let mut got = keys.clone();
+    got.sort_unstable();
+    want.sort_unstable();
+    assert_eq!(got, want);
+    assert_eq!(v["fluid"], "nitrogen");
+    assert_eq!(v["phase"], "liquid");
+    let rho = v["density_kg_m3"].as_f64().unwrap();
+    // CoolProp 8.0.0: 807.70 kg/m³
+    assert!((rho / 807.70 - 1.0).abs() < 5e-4, "density {rho}");
+    let t_sat = v["t_sat_k"].as_f64().unwrap();
+    assert!((t_sat - 77.355).abs() < 1e-3, "T_sat {t_sat}");
+}
+
+#[test]
+fn supercritical_state_has_no_saturation_temperature() {
+    let out = cryofit(&["props", "N2", "--p", "3.5e6", "--t", "200", "--json"]);
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["phase"], "supercritical");
+    assert!(v["t_sat_k"].is_null());
+}
+
+#[test]
+fn human_readable_output_names_units() {
+    let out = cryofit(&["props", "methane", "--p", "2e5", "--t", "300"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("gas") && text.contains("kg/m³") && text.contains("saturation temperature"), "{text}");
+}
+
+fn assert_one_line_error(args: &[&str], needle: &str) {
+    let out = cryofit(args);
+    assert!(!out.status.success(), "{args:?} should fail");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
+    assert!(err.contains(needle), "{args:?}: '{err}' does not mention '{needle}'");
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn bad_input_gives_one_line_errors() {
+    assert_one_line_error(&["props", "helium", "--p", "1e5", "--t", "4"], "unknown fluid 'helium'");
+    assert_one_line_error(&["props", "nitrogen", "--p", "1e5", "--t", "500"], "350 K");
+    assert_one_line_error(&["props", "nitrogen", "--p", "1e8", "--t", "100"], "pressure must be within");
+    assert_one_line_error(&["props", "nitrogen", "--p", "-5", "--t", "100"], "pressure must be within");
+    assert_one_line_error(&["props", "nitrogen", "--p", "abc", "--t", "100"], "--p");
+    assert_one_line_error(&["props", "nitrogen", "--t", "100"], "--p");
+}
+
+#[test]
+fn data_dir_overrides_the_built_in_tables() {
+    let dir = std::env::temp_dir().join(format!("cryofit-props-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // an empty directory: the error names the file and the variable
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["props", "nitrogen", "--p", "101325", "--t", "77"])
+        .env("CRYOFIT_DATA_DIR", &dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("CRYOFIT_DATA_DIR") && err.contains("nitrogen.cft"), "{err}");
+    // a copy of the real table is read and used
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/fluids/nitrogen.cft");
+    std::fs::copy(src, dir.join("nitrogen.cft")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["props", "nitrogen", "--p", "101325", "--t", "77", "--json"])
+        .env("CRYOFIT_DATA_DIR", &dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // a corrupt table is refused with its path
+    std::fs::write(dir.join("nitrogen.cft"), b"CRYOFLT1garbage").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["props", "nitrogen", "--p", "101325", "--t", "77"])
+        .env("CRYOFIT_DATA_DIR", &dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nitrogen.cft"));
+    std::fs::remove_dir_all(&dir).ok();
+}

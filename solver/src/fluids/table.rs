@@ -1,0 +1,728 @@
+//! The binary table format and its evaluation.
+
+use serde::Deserialize;
+
+use super::hermite::{Axis, Hermite1, SegmentSpec, Weights};
+use super::{FluidError, Phase};
+
+const MAGIC: &[u8; 8] = b"CRYOFLT1";
+const FORMAT_VERSION: u32 = 1;
+/// Tabulated properties per node, in this order.
+const PROPS: [&str; 5] = ["rho", "u", "cp", "mu", "k"];
+const NPROP: usize = PROPS.len();
+/// Floats per node: value, d/dp, d/dT, d²/dpdT for every property.
+const NODE: usize = 4 * NPROP;
+
+/// Constants of a fluid and the limits of its table.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FluidConstants {
+    /// Table name (`nitrogen`, `hydrogen`, ...).
+    pub name: String,
+    /// Human-readable name.
+    pub description: String,
+    /// CoolProp version the table was generated with.
+    pub coolprop_version: String,
+    /// Citation key of the equation of state.
+    pub eos_reference: String,
+    /// Molar mass, kg/mol.
+    pub molar_mass_kg_mol: f64,
+    /// Specific gas constant R/M, J/(kg K).
+    pub gas_constant_j_kg_k: f64,
+    /// Triple-point temperature, K.
+    pub t_triple_k: f64,
+    /// Triple-point pressure, Pa.
+    pub p_triple_pa: f64,
+    /// Critical temperature, K.
+    pub t_critical_k: f64,
+    /// Critical pressure, Pa.
+    pub p_critical_pa: f64,
+    /// Lowest tabulated pressure, Pa.
+    pub p_min_pa: f64,
+    /// Highest tabulated pressure, Pa.
+    pub p_max_pa: f64,
+    /// Highest tabulated temperature, K.
+    pub t_max_k: f64,
+    /// Guaranteed reach of each phase past the saturation line (unless the spinodal is closer), K.
+    pub metastable_k: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    format: u32,
+    fluid: String,
+    description: String,
+    #[allow(dead_code)]
+    coolprop_name: String,
+    coolprop_version: String,
+    eos_reference: String,
+    molar_mass_kg_mol: f64,
+    gas_constant_j_kg_k: f64,
+    t_triple_k: f64,
+    p_triple_pa: f64,
+    t_critical_k: f64,
+    p_critical_pa: f64,
+    p_min_pa: f64,
+    p_max_pa: f64,
+    t_max_k: f64,
+    metastable_k: f64,
+    p_axis: Vec<SegmentSpec>,
+    t_axis: Vec<SegmentSpec>,
+    properties: Vec<String>,
+    phases: PhasesHeader,
+    saturation: SatHeader,
+    melting_nodes: usize,
+    blobs: Vec<(String, usize)>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PhasesHeader {
+    liquid: RowsHeader,
+    gas: RowsHeader,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RowsHeader {
+    row_first: Vec<u32>,
+    row_count: Vec<u32>,
+    row_spinodal_k: Vec<Option<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SatHeader {
+    p_nodes: usize,
+    columns: Vec<String>,
+    t_nodes: usize,
+    t_columns: Vec<String>,
+}
+
+/// One phase's grid: rows of nodes (one row per pressure node), each row a contiguous run of
+/// temperature nodes `row_first .. row_first + row_count`.
+#[derive(Debug, Clone)]
+struct PhaseTable {
+    /// Spinodal temperature where a row ends at the spinodal, else `None`.
+    row_spinodal: Vec<Option<f64>>,
+    row_first: Vec<u32>,
+    row_count: Vec<u32>,
+    row_start: Vec<u32>,
+    data: Vec<f32>,
+}
+
+impl PhaseTable {
+    /// Offset (in nodes) of node `(i, j)` if both `j` and `j + 1` are in row `i`.
+    #[inline]
+    fn cell_offset(&self, i: usize, j: usize) -> Option<usize> {
+        let first = *self.row_first.get(i)? as usize;
+        let count = self.row_count[i] as usize;
+        if j < first || j + 1 >= first + count {
+            return None;
+        }
+        Some(self.row_start[i] as usize + (j - first))
+    }
+
+    /// First and last temperature node of the cells usable between pressure rows `i` and `i + 1`.
+    fn cell_range(&self, i: usize) -> Option<(usize, usize)> {
+        if i + 1 >= self.row_first.len() || self.row_count[i] == 0 || self.row_count[i + 1] == 0 {
+            return None;
+        }
+        let lo = self.row_first[i].max(self.row_first[i + 1]) as usize;
+        let end_a = (self.row_first[i] + self.row_count[i]) as usize;
+        let end_b = (self.row_first[i + 1] + self.row_count[i + 1]) as usize;
+        let last = end_a.min(end_b).checked_sub(1)?;
+        (last > lo).then_some((lo, last))
+    }
+}
+
+/// Properties of one phase at a pressure and temperature, with the partial derivatives the
+/// implicit scheme needs (SI units; `_dp` at constant T, `_dt` at constant p).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct PhaseProps {
+    /// Density ρ, kg/m³.
+    pub rho: f64,
+    /// ∂ρ/∂p at constant T, kg/m³/Pa.
+    pub drho_dp: f64,
+    /// ∂ρ/∂T at constant p, kg/m³/K.
+    pub drho_dt: f64,
+    /// Specific internal energy u, J/kg.
+    pub u: f64,
+    /// ∂u/∂p at constant T, J/kg/Pa.
+    pub du_dp: f64,
+    /// ∂u/∂T at constant p, J/kg/K.
+    pub du_dt: f64,
+    /// Specific enthalpy h = u + p/ρ, J/kg.
+    pub h: f64,
+    /// ∂h/∂p at constant T, J/kg/Pa.
+    pub dh_dp: f64,
+    /// ∂h/∂T at constant p, J/kg/K (the interpolant's; `cp` is the tabulated value).
+    pub dh_dt: f64,
+    /// Isobaric specific heat c_p, J/kg/K.
+    pub cp: f64,
+    /// Dynamic viscosity μ, Pa s.
+    pub mu: f64,
+    /// Thermal conductivity k, W/m/K.
+    pub k: f64,
+}
+
+/// Saturation properties at a pressure, with derivatives along the saturation line.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Saturation {
+    /// Pressure, Pa.
+    pub pressure_pa: f64,
+    /// Saturation temperature, K.
+    pub t_sat: f64,
+    /// dT_sat/dp, K/Pa.
+    pub dt_sat_dp: f64,
+    /// Saturated liquid density, kg/m³.
+    pub rho_l: f64,
+    /// dρ_l,sat/dp.
+    pub drho_l_dp: f64,
+    /// Saturated vapour density, kg/m³.
+    pub rho_g: f64,
+    /// dρ_g,sat/dp.
+    pub drho_g_dp: f64,
+    /// Saturated liquid enthalpy, J/kg.
+    pub h_l: f64,
+    /// dh_l,sat/dp.
+    pub dh_l_dp: f64,
+    /// Saturated vapour enthalpy, J/kg.
+    pub h_g: f64,
+    /// dh_g,sat/dp.
+    pub dh_g_dp: f64,
+    /// Latent heat h_g − h_l, J/kg.
+    pub h_lg: f64,
+    /// Surface tension, N/m.
+    pub sigma: f64,
+    /// dσ/dp along the saturation line, N/m/Pa.
+    pub dsigma_dp: f64,
+}
+
+/// The stable state at `(p, T)`, as `cryofit props` reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StableState {
+    /// `liquid`, `gas` or `supercritical`.
+    pub label: &'static str,
+    /// The phase table that answered.
+    pub phase: Phase,
+    /// Properties.
+    pub props: PhaseProps,
+    /// Saturation temperature at that pressure, where there is one.
+    pub t_sat: Option<f64>,
+}
+
+/// A loaded fluid property table. Cheap to share (`&FluidTable` is all evaluation needs).
+#[derive(Debug, Clone)]
+pub struct FluidTable {
+    constants: FluidConstants,
+    p_axis: Axis,
+    t_axis: Axis,
+    phases: [PhaseTable; 2],
+    sat_p: Hermite1,
+    sat_t: Hermite1,
+    melt: Vec<f64>,
+}
+
+fn format_err(msg: impl Into<String>) -> FluidError {
+    FluidError::Format(msg.into())
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn take(&mut self, n: usize) -> Result<&[u8], FluidError> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or_else(|| {
+            format_err(format!(
+                "truncated: needs {n} more bytes at offset {}, has {}",
+                self.pos,
+                self.bytes.len() - self.pos
+            ))
+        })?;
+        let s = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+
+    fn f32s(&mut self, n: usize) -> Result<Vec<f32>, FluidError> {
+        let raw = self.take(n.checked_mul(4).ok_or_else(|| format_err("blob too large"))?)?;
+        Ok(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+    }
+
+    fn f64s(&mut self, n: usize) -> Result<Vec<f64>, FluidError> {
+        let raw = self.take(n.checked_mul(8).ok_or_else(|| format_err("blob too large"))?)?;
+        Ok(raw.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("chunk of 8"))).collect())
+    }
+}
+
+impl FluidTable {
+    /// Parses a table written by `tools/fluid_tables.py`.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, FluidError> {
+        let mut r = Reader { bytes, pos: 0 };
+        if r.take(8)? != MAGIC {
+            return Err(format_err("not a cryofit fluid table (bad magic bytes)"));
+        }
+        let len = u32::from_le_bytes(r.take(4)?.try_into().expect("4 bytes")) as usize;
+        let header: Header = serde_json::from_slice(r.take(len)?).map_err(|e| format_err(format!("header: {e}")))?;
+        if header.format != FORMAT_VERSION {
+            return Err(format_err(format!(
+                "format version {} (this build reads version {FORMAT_VERSION}); regenerate with tools/fluid_tables.py",
+                header.format
+            )));
+        }
+        if header.properties != PROPS {
+            return Err(format_err(format!("properties {:?}, expected {PROPS:?}", header.properties)));
+        }
+        let p_axis = Axis::new(&header.p_axis).map_err(|e| format_err(format!("pressure axis: {e}")))?;
+        let t_axis = Axis::new(&header.t_axis).map_err(|e| format_err(format!("temperature axis: {e}")))?;
+        let expect_blobs = ["f32", "f32", "f64", "f64", "f64", "f64", "f64"];
+        if header.blobs.len() != expect_blobs.len()
+            || header.blobs.iter().zip(expect_blobs).any(|((kind, _), want)| kind != want)
+        {
+            return Err(format_err("unexpected blob layout"));
+        }
+        let mut phases = Vec::with_capacity(2);
+        for (k, rows) in [&header.phases.liquid, &header.phases.gas].into_iter().enumerate() {
+            let n_rows = rows.row_first.len();
+            if n_rows != p_axis.len() || rows.row_count.len() != n_rows || rows.row_spinodal_k.len() != n_rows {
+                return Err(format_err(format!("phase {k}: {n_rows} rows for {} pressure nodes", p_axis.len())));
+            }
+            let mut row_start = Vec::with_capacity(n_rows);
+            let mut total: u32 = 0;
+            for (f, c) in rows.row_first.iter().zip(&rows.row_count) {
+                if (*f as usize + *c as usize) > t_axis.len() {
+                    return Err(format_err(format!("phase {k}: a row runs past the temperature axis")));
+                }
+                row_start.push(total);
+                total += c;
+            }
+            let want = total as usize * NODE;
+            if header.blobs[k].1 != want {
+                return Err(format_err(format!("phase {k}: {} floats for {total} nodes", header.blobs[k].1)));
+            }
+            let data = r.f32s(want)?;
+            if data.iter().any(|v| !v.is_finite()) {
+                return Err(format_err(format!("phase {k}: non-finite node data")));
+            }
+            phases.push(PhaseTable {
+                row_spinodal: rows.row_spinodal_k.clone(),
+                row_first: rows.row_first.clone(),
+                row_count: rows.row_count.clone(),
+                row_start,
+                data,
+            });
+        }
+        let sat = &header.saturation;
+        if sat.columns.len() != 12 || sat.t_columns.len() != 2 {
+            return Err(format_err("saturation columns"));
+        }
+        let sat_p_x = r.f64s(header.blobs[2].1)?;
+        let sat_p_v = r.f64s(header.blobs[3].1)?;
+        let sat_t_x = r.f64s(header.blobs[4].1)?;
+        let sat_t_v = r.f64s(header.blobs[5].1)?;
+        let melt = r.f64s(header.blobs[6].1)?;
+        if sat_p_x.len() != sat.p_nodes
+            || sat_p_v.len() != sat.p_nodes * 12
+            || sat_t_x.len() != sat.t_nodes
+            || sat_t_v.len() != sat.t_nodes * 2
+            || melt.len() != header.melting_nodes
+            || melt.len() != p_axis.len()
+            || sat.p_nodes < 2
+            || sat.t_nodes < 2
+        {
+            return Err(format_err("saturation or melting table sizes do not match the header"));
+        }
+        if sat_p_x.windows(2).any(|w| w[1] <= w[0]) || sat_t_x.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(format_err("saturation nodes are not increasing"));
+        }
+        if r.pos != bytes.len() {
+            return Err(format_err(format!("{} trailing bytes", bytes.len() - r.pos)));
+        }
+        let constants = FluidConstants {
+            name: header.fluid,
+            description: header.description,
+            coolprop_version: header.coolprop_version,
+            eos_reference: header.eos_reference,
+            molar_mass_kg_mol: header.molar_mass_kg_mol,
+            gas_constant_j_kg_k: header.gas_constant_j_kg_k,
+            t_triple_k: header.t_triple_k,
+            p_triple_pa: header.p_triple_pa,
+            t_critical_k: header.t_critical_k,
+            p_critical_pa: header.p_critical_pa,
+            p_min_pa: header.p_min_pa,
+            p_max_pa: header.p_max_pa,
+            t_max_k: header.t_max_k,
+            metastable_k: header.metastable_k,
+        };
+        let [liquid, gas]: [PhaseTable; 2] = phases.try_into().expect("two phases");
+        Ok(Self {
+            constants,
+            p_axis,
+            t_axis,
+            phases: [liquid, gas],
+            sat_p: Hermite1 { x: sat_p_x, values: sat_p_v, columns: 6 },
+            sat_t: Hermite1 { x: sat_t_x, values: sat_t_v, columns: 1 },
+            melt,
+        })
+    }
+
+    /// Fluid constants and table limits.
+    pub fn constants(&self) -> &FluidConstants {
+        &self.constants
+    }
+
+    /// Table name.
+    pub fn name(&self) -> &str {
+        &self.constants.name
+    }
+
+    fn out_of_range(&self, phase: Option<Phase>, p: f64, t: f64, reason: impl Into<String>) -> FluidError {
+        FluidError::OutOfRange {
+            fluid: self.constants.name.clone(),
+            phase,
+            pressure_pa: p,
+            temperature_k: t,
+            reason: reason.into(),
+        }
+    }
+
+    fn range_error(&self, phase: Phase, p: f64, t: f64) -> FluidError {
+        let c = &self.constants;
+        if !p.is_finite() || !t.is_finite() {
+            return self.out_of_range(Some(phase), p, t, "pressure and temperature must be finite numbers");
+        }
+        if !(p >= self.p_axis.lo() && p <= self.p_axis.hi()) {
+            return self.out_of_range(
+                Some(phase),
+                p,
+                t,
+                format!("pressure must be within {} to {} Pa", self.p_axis.lo(), self.p_axis.hi()),
+            );
+        }
+        if !(t >= self.t_axis.lo() && t <= self.t_axis.hi()) {
+            return self.out_of_range(
+                Some(phase),
+                p,
+                t,
+                format!("temperature must be within {} K (triple point) to {} K", self.t_axis.lo(), self.t_axis.hi()),
+            );
+        }
+        let range = self.phase_temperature_range(phase, p);
+        let detail = match range {
+            Some((lo, hi)) => format!("at this pressure the {phase} table spans {lo:.3} to {hi:.3} K"),
+            None => format!("the {phase} table has no states at this pressure"),
+        };
+        let what = match phase {
+            Phase::Liquid => "superheated liquid is tabulated",
+            Phase::Gas => "subcooled vapour is tabulated",
+        };
+        self.out_of_range(
+            Some(phase),
+            p,
+            t,
+            format!("{what} up to {} K past saturation or to near the spinodal; {detail}", c.metastable_k),
+        )
+    }
+
+    /// The temperature interval the `phase` table answers at pressure `p`, if any.
+    pub fn phase_temperature_range(&self, phase: Phase, p: f64) -> Option<(f64, f64)> {
+        let lp = self.p_axis.locate(p)?;
+        let (lo, hi) = self.phases[phase.index()].cell_range(lp.index)?;
+        Some((self.t_axis.node(lo), self.t_axis.node(hi)))
+    }
+
+    /// Where the `phase` table ends at the spinodal near pressure `p`: the spinodal temperature
+    /// (interpolated between the two pressure rows around `p`, or that of the one row of the two
+    /// that ends at the spinodal), or `None` where the table ends
+    /// for another reason (the 20 K reach, the triple point, the critical temperature).
+    pub fn spinodal_temperature(&self, phase: Phase, p: f64) -> Option<f64> {
+        let lp = self.p_axis.locate(p)?;
+        let rows = &self.phases[phase.index()].row_spinodal;
+        match (rows[lp.index], rows[lp.index + 1]) {
+            (Some(a), Some(b)) => Some(a + (b - a) * lp.frac),
+            // one row ended at the spinodal, the other at its 20 K reach: the spinodal limits
+            (Some(a), None) | (None, Some(a)) => Some(a),
+            (None, None) => None,
+        }
+    }
+
+    /// Properties of `phase` at `(p, T)`, with derivatives.
+    ///
+    /// The phase is taken as given: a liquid above its saturation temperature is a superheated
+    /// (metastable) liquid, evaluated on the continuation of the liquid equation of state.
+    #[inline]
+    pub fn phase_props(&self, phase: Phase, p: f64, t: f64) -> Result<PhaseProps, FluidError> {
+        let (Some(mut lp), Some(mut lt)) = (self.p_axis.locate(p), self.t_axis.locate(t)) else {
+            return Err(self.range_error(phase, p, t));
+        };
+        let tab = &self.phases[phase.index()];
+        // A state on the edge of the coverage may round into the neighbouring (missing) cell:
+        // move it to the cell it borders, with the fraction just past 0 or 1.
+        const EDGE: f64 = 1e-9;
+        let cell_ok = |i: usize, j: usize| tab.cell_offset(i, j).is_some() && tab.cell_offset(i + 1, j).is_some();
+        if !cell_ok(lp.index, lt.index) {
+            let np = self.p_axis.len() - 1;
+            let nt = self.t_axis.len() - 1;
+            let ip = [(lp.index, lp.frac), (lp.index.wrapping_sub(1), lp.frac + 1.0), (lp.index + 1, lp.frac - 1.0)];
+            let it = [(lt.index, lt.frac), (lt.index.wrapping_sub(1), lt.frac + 1.0), (lt.index + 1, lt.frac - 1.0)];
+            let near = |f: f64| (-EDGE..=1.0 + EDGE).contains(&f);
+            let found = ip
+                .iter()
+                .flat_map(|a| it.iter().map(move |b| (*a, *b)))
+                .find(|&((i, fi), (j, fj))| i < np && j < nt && near(fi) && near(fj) && cell_ok(i, j));
+            let Some(((i, fi), (j, fj))) = found else {
+                return Err(self.range_error(phase, p, t));
+            };
+            (lp.index, lp.frac, lt.index, lt.frac) = (i, fi, j, fj);
+        }
+        let o0 = tab.cell_offset(lp.index, lt.index).expect("checked cell");
+        let o1 = tab.cell_offset(lp.index + 1, lt.index).expect("checked cell");
+        let wx = Weights::new(lp.frac, lp.width);
+        let wy = Weights::new(lt.frac, lt.width);
+        // corner order: (i, j), (i, j+1), (i+1, j), (i+1, j+1)
+        let offsets = [o0, o0 + 1, o1, o1 + 1];
+        let ab = [(0usize, 0usize), (0, 1), (1, 0), (1, 1)];
+        let mut wv = [0.0f64; 16];
+        let mut wp = [0.0f64; 16];
+        let mut wt = [0.0f64; 16];
+        for (c, &(a, b)) in ab.iter().enumerate() {
+            wv[4 * c] = wx.a[a] * wy.a[b];
+            wv[4 * c + 1] = wx.b[a] * wy.a[b];
+            wv[4 * c + 2] = wx.a[a] * wy.b[b];
+            wv[4 * c + 3] = wx.b[a] * wy.b[b];
+            wp[4 * c] = wx.da[a] * wy.a[b];
+            wp[4 * c + 1] = wx.db[a] * wy.a[b];
+            wp[4 * c + 2] = wx.da[a] * wy.b[b];
+            wp[4 * c + 3] = wx.db[a] * wy.b[b];
+            wt[4 * c] = wx.a[a] * wy.da[b];
+            wt[4 * c + 1] = wx.b[a] * wy.da[b];
+            wt[4 * c + 2] = wx.a[a] * wy.db[b];
+            wt[4 * c + 3] = wx.b[a] * wy.db[b];
+        }
+        let data = &tab.data;
+        let mut v = [0.0f64; NPROP];
+        let mut dp = [0.0f64; 2];
+        let mut dt = [0.0f64; 2];
+        for (c, &off) in offsets.iter().enumerate() {
+            let node: &[f32; NODE] = data[off * NODE..off * NODE + NODE].try_into().expect("node slice");
+            for prop in 0..NPROP {
+                let n = &node[4 * prop..4 * prop + 4];
+                let w = &wv[4 * c..4 * c + 4];
+                v[prop] += w[0] * n[0] as f64 + w[1] * n[1] as f64 + w[2] * n[2] as f64 + w[3] * n[3] as f64;
+            }
+            for prop in 0..2 {
+                let n = &node[4 * prop..4 * prop + 4];
+                let a = &wp[4 * c..4 * c + 4];
+                let b = &wt[4 * c..4 * c + 4];
+                dp[prop] += a[0] * n[0] as f64 + a[1] * n[1] as f64 + a[2] * n[2] as f64 + a[3] * n[3] as f64;
+                dt[prop] += b[0] * n[0] as f64 + b[1] * n[1] as f64 + b[2] * n[2] as f64 + b[3] * n[3] as f64;
+            }
+        }
+        let rho = v[0];
+        let inv_rho = 1.0 / rho;
+        let p_rho2 = p * inv_rho * inv_rho;
+        Ok(PhaseProps {
+            rho,
+            drho_dp: dp[0],
+            drho_dt: dt[0],
+            u: v[1],
+            du_dp: dp[1],
+            du_dt: dt[1],
+            h: v[1] + p * inv_rho,
+            dh_dp: dp[1] + inv_rho - p_rho2 * dp[0],
+            dh_dt: dt[1] - p_rho2 * dt[0],
+            cp: v[2],
+            mu: v[3],
+            k: v[4],
+        })
+    }
+
+    /// Temperature of `phase` at pressure `p` with specific internal energy `u`, and the
+    /// properties there. `t_guess` (for example the previous time level's temperature) speeds up
+    /// the Newton iteration; the answer does not depend on it.
+    pub fn temperature_from_energy(
+        &self,
+        phase: Phase,
+        p: f64,
+        u: f64,
+        t_guess: f64,
+    ) -> Result<(f64, PhaseProps), FluidError> {
+        let fail = || FluidError::EnergyOutOfRange {
+            fluid: self.constants.name.clone(),
+            phase,
+            pressure_pa: p,
+            energy_j_kg: u,
+        };
+        if !u.is_finite() {
+            return Err(fail());
+        }
+        let Some((lo, hi)) = self.phase_temperature_range(phase, p) else {
+            return Err(self.range_error(phase, p, t_guess));
+        };
+        // Newton from the guess; u(T) is monotone (du/dT|p > 0 wherever the phase exists)
+        let mut t = if t_guess.is_finite() { t_guess.clamp(lo, hi) } else { 0.5 * (lo + hi) };
+        for _ in 0..12 {
+            let pr = self.phase_props(phase, p, t)?;
+            let f = pr.u - u;
+            if pr.du_dt > 0.0 {
+                let step = f / pr.du_dt;
+                let next = t - step;
+                if step.abs() <= 1e-11 * t {
+                    return Ok((t, pr));
+                }
+                if next >= lo && next <= hi {
+                    t = next;
+                    continue;
+                }
+            }
+            break;
+        }
+        // safeguarded bisection-Newton on the bracket
+        let (mut a, mut b) = (lo, hi);
+        let fa = self.phase_props(phase, p, a)?.u - u;
+        let fb = self.phase_props(phase, p, b)?.u - u;
+        if fa > 0.0 || fb < 0.0 {
+            return Err(fail());
+        }
+        t = 0.5 * (a + b);
+        for _ in 0..200 {
+            let pr = self.phase_props(phase, p, t)?;
+            let f = pr.u - u;
+            if f > 0.0 {
+                b = t;
+            } else {
+                a = t;
+            }
+            let newton = if pr.du_dt > 0.0 { t - f / pr.du_dt } else { f64::NAN };
+            let next = if newton > a && newton < b { newton } else { 0.5 * (a + b) };
+            if (next - t).abs() <= 1e-11 * t || b - a <= 1e-11 * t {
+                let pr = self.phase_props(phase, p, next)?;
+                return Ok((next, pr));
+            }
+            t = next;
+        }
+        Err(fail())
+    }
+
+    /// Saturation properties at pressure `p` (from the triple-point pressure to 0.995 of the
+    /// critical pressure; closer to the critical point the latent heat vanishes and the
+    /// derivatives along the saturation line diverge).
+    pub fn saturation(&self, p: f64) -> Result<Saturation, FluidError> {
+        let Some((i, w)) = self.sat_p.locate(p) else {
+            let (lo, hi) = (self.sat_p.x[0], self.sat_p.x[self.sat_p.x.len() - 1]);
+            return Err(FluidError::NoSaturation {
+                fluid: self.constants.name.clone(),
+                quantity: "pressure_pa",
+                value: p,
+                reason: format!(
+                    "saturation is tabulated from {lo:.6} Pa (triple point) to {hi:.6} Pa (near the critical point)"
+                ),
+            });
+        };
+        let s = &self.sat_p;
+        let (t_sat, dt_sat_dp) = s.eval(i, &w, 0);
+        let (rho_l, drho_l_dp) = s.eval(i, &w, 1);
+        let (rho_g, drho_g_dp) = s.eval(i, &w, 2);
+        let (h_l, dh_l_dp) = s.eval(i, &w, 3);
+        let (h_g, dh_g_dp) = s.eval(i, &w, 4);
+        let (sigma, dsigma_dp) = s.eval(i, &w, 5);
+        Ok(Saturation {
+            pressure_pa: p,
+            t_sat,
+            dt_sat_dp,
+            rho_l,
+            drho_l_dp,
+            rho_g,
+            drho_g_dp,
+            h_l,
+            dh_l_dp,
+            h_g,
+            dh_g_dp,
+            h_lg: h_g - h_l,
+            sigma: sigma.max(0.0),
+            dsigma_dp,
+        })
+    }
+
+    /// Saturation pressure at temperature `t` and its derivative dp_sat/dT.
+    pub fn saturation_pressure(&self, t: f64) -> Result<(f64, f64), FluidError> {
+        let Some((i, w)) = self.sat_t.locate(t) else {
+            let (lo, hi) = (self.sat_t.x[0], self.sat_t.x[self.sat_t.x.len() - 1]);
+            return Err(FluidError::NoSaturation {
+                fluid: self.constants.name.clone(),
+                quantity: "temperature_k",
+                value: t,
+                reason: format!(
+                    "saturation is tabulated from {lo:.4} K (triple point) to {hi:.4} K (near the critical point)"
+                ),
+            });
+        };
+        Ok(self.sat_t.eval(i, &w, 0))
+    }
+
+    /// Surface tension at temperature `t` (on the saturation line), N/m.
+    pub fn surface_tension(&self, t: f64) -> Result<f64, FluidError> {
+        let (p, _) = self.saturation_pressure(t)?;
+        Ok(self.saturation(p.clamp(self.sat_p.x[0], self.sat_p.x[self.sat_p.x.len() - 1]))?.sigma)
+    }
+
+    /// Melting temperature at pressure `p` (the triple-point temperature where the melting line
+    /// lies below it), K.
+    pub fn melting_temperature(&self, p: f64) -> Option<f64> {
+        let lp = self.p_axis.locate(p)?;
+        let (a, b) = (self.melt[lp.index], self.melt[lp.index + 1]);
+        Some(a + (b - a) * lp.frac)
+    }
+
+    /// The thermodynamically stable state at `(p, T)`: liquid below saturation, gas above it,
+    /// supercritical above the critical pressure. States below the melting line are rejected
+    /// here (the phase tables still answer them as supercooled liquid).
+    pub fn stable_state(&self, p: f64, t: f64) -> Result<StableState, FluidError> {
+        let c = &self.constants;
+        if !(p.is_finite() && t.is_finite()) {
+            return Err(self.out_of_range(None, p, t, "pressure and temperature must be finite numbers"));
+        }
+        if !(p >= c.p_min_pa && p <= c.p_max_pa) {
+            return Err(self.out_of_range(
+                None,
+                p,
+                t,
+                format!("pressure must be within {} to {} Pa", c.p_min_pa, c.p_max_pa),
+            ));
+        }
+        let t_melt = self.melting_temperature(p).unwrap_or(c.t_triple_k);
+        if !(t >= t_melt && t <= c.t_max_k) {
+            return Err(self.out_of_range(
+                None,
+                p,
+                t,
+                format!("temperature must be within {t_melt:.4} K (triple point or melting line) to {} K", c.t_max_k),
+            ));
+        }
+        let (label, phase, t_sat) = if p >= c.p_critical_pa {
+            ("supercritical", Phase::Gas, None)
+        } else if p < c.p_triple_pa {
+            ("gas", Phase::Gas, None)
+        } else if let Ok(sat) = self.saturation(p) {
+            if t <= sat.t_sat {
+                ("liquid", Phase::Liquid, Some(sat.t_sat))
+            } else {
+                ("gas", Phase::Gas, Some(sat.t_sat))
+            }
+        } else if t >= c.t_critical_k {
+            ("gas", Phase::Gas, None)
+        } else {
+            return Err(self.out_of_range(
+                None,
+                p,
+                t,
+                "too close to the critical point to tell liquid from vapour (within 0.5 % of the critical pressure)",
+            ));
+        };
+        let props = self.phase_props(phase, p, t)?;
+        Ok(StableState { label, phase, props, t_sat })
+    }
+}
