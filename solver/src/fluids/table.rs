@@ -10,8 +10,12 @@ const FORMAT_VERSION: u32 = 1;
 /// Tabulated properties per node, in this order.
 const PROPS: [&str; 5] = ["rho", "u", "cp", "mu", "k"];
 const NPROP: usize = PROPS.len();
-/// Floats per node: value, d/dp, d/dT, d²/dpdT for every property.
+/// Floats per node in the file: value, d/dp, d/dT, d²/dpdT for every property.
 const NODE: usize = 4 * NPROP;
+/// Properties per component in memory, padded to an even count for two-wide vector lanes.
+const LANES: usize = 6;
+/// Floats per node in memory.
+const MEM_NODE: usize = 4 * LANES;
 
 /// Constants of a fluid and the limits of its table.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -99,38 +103,47 @@ struct SatHeader {
     t_columns: Vec<String>,
 }
 
+/// One pressure row of a phase table.
+#[derive(Debug, Clone, Copy)]
+struct Row {
+    first: u32,
+    end: u32,
+    start: u32,
+}
+
 /// One phase's grid: rows of nodes (one row per pressure node), each row a contiguous run of
 /// temperature nodes `row_first .. row_first + row_count`.
 #[derive(Debug, Clone)]
 struct PhaseTable {
     /// Spinodal temperature where a row ends at the spinodal, else `None`.
     row_spinodal: Vec<Option<f64>>,
-    row_first: Vec<u32>,
-    row_count: Vec<u32>,
-    row_start: Vec<u32>,
-    data: Vec<f32>,
+    /// Per pressure row: first temperature node, one past the last, and where its nodes start.
+    rows: Vec<Row>,
+    /// Node data in memory order `[component][property]` (component: value, d/dp, d/dT,
+    /// d²/dpdT), so that one pass over the properties vectorises.
+    data: Vec<[f64; MEM_NODE]>,
 }
 
 impl PhaseTable {
     /// Offset (in nodes) of node `(i, j)` if both `j` and `j + 1` are in row `i`.
     #[inline]
     fn cell_offset(&self, i: usize, j: usize) -> Option<usize> {
-        let first = *self.row_first.get(i)? as usize;
-        let count = self.row_count[i] as usize;
-        if j < first || j + 1 >= first + count {
+        let row = self.rows.get(i)?;
+        let (first, end) = (row.first as usize, row.end as usize);
+        if j < first || j + 1 >= end {
             return None;
         }
-        Some(self.row_start[i] as usize + (j - first))
+        Some(row.start as usize + (j - first))
     }
 
     /// First and last temperature node of the cells usable between pressure rows `i` and `i + 1`.
     fn cell_range(&self, i: usize) -> Option<(usize, usize)> {
-        if i + 1 >= self.row_first.len() || self.row_count[i] == 0 || self.row_count[i + 1] == 0 {
+        let (a, b) = (self.rows.get(i)?, self.rows.get(i + 1)?);
+        if a.end == a.first || b.end == b.first {
             return None;
         }
-        let lo = self.row_first[i].max(self.row_first[i + 1]) as usize;
-        let end_a = (self.row_first[i] + self.row_count[i]) as usize;
-        let end_b = (self.row_first[i + 1] + self.row_count[i + 1]) as usize;
+        let lo = a.first.max(b.first) as usize;
+        let (end_a, end_b) = (a.end as usize, b.end as usize);
         let last = end_a.min(end_b).checked_sub(1)?;
         (last > lo).then_some((lo, last))
     }
@@ -307,11 +320,28 @@ impl FluidTable {
             if data.iter().any(|v| !v.is_finite()) {
                 return Err(format_err(format!("phase {k}: non-finite node data")));
             }
+            // file order is [property][component]; transpose to [component][property]
+            let data: Vec<[f64; MEM_NODE]> = data
+                .chunks_exact(NODE)
+                .map(|n| {
+                    let mut out = [0.0f64; MEM_NODE];
+                    for q in 0..NPROP {
+                        for c in 0..4 {
+                            out[c * LANES + q] = n[4 * q + c] as f64;
+                        }
+                    }
+                    out
+                })
+                .collect();
             phases.push(PhaseTable {
                 row_spinodal: rows.row_spinodal_k.clone(),
-                row_first: rows.row_first.clone(),
-                row_count: rows.row_count.clone(),
-                row_start,
+                rows: rows
+                    .row_first
+                    .iter()
+                    .zip(&rows.row_count)
+                    .zip(&row_start)
+                    .map(|((&first, &count), &start)| Row { first, end: first + count, start })
+                    .collect(),
                 data,
             });
         }
@@ -463,7 +493,11 @@ impl FluidTable {
         // move it to the cell it borders, with the fraction just past 0 or 1.
         const EDGE: f64 = 1e-9;
         let cell_ok = |i: usize, j: usize| tab.cell_offset(i, j).is_some() && tab.cell_offset(i + 1, j).is_some();
-        if !cell_ok(lp.index, lt.index) {
+        let fast = match (tab.cell_offset(lp.index, lt.index), tab.cell_offset(lp.index + 1, lt.index)) {
+            (Some(a), Some(b)) => Some((a, b)),
+            _ => None,
+        };
+        if fast.is_none() {
             let np = self.p_axis.len() - 1;
             let nt = self.t_axis.len() - 1;
             let ip = [(lp.index, lp.frac), (lp.index.wrapping_sub(1), lp.frac + 1.0), (lp.index + 1, lp.frac - 1.0)];
@@ -478,49 +512,52 @@ impl FluidTable {
             };
             (lp.index, lp.frac, lt.index, lt.frac) = (i, fi, j, fj);
         }
-        let o0 = tab.cell_offset(lp.index, lt.index).expect("checked cell");
-        let o1 = tab.cell_offset(lp.index + 1, lt.index).expect("checked cell");
+        let (o0, o1) = match fast {
+            Some(o) => o,
+            None => (
+                tab.cell_offset(lp.index, lt.index).expect("checked cell"),
+                tab.cell_offset(lp.index + 1, lt.index).expect("checked cell"),
+            ),
+        };
         let wx = Weights::new(lp.frac, lp.width);
         let wy = Weights::new(lt.frac, lt.width);
-        // corner order: (i, j), (i, j+1), (i+1, j), (i+1, j+1)
-        let offsets = [o0, o0 + 1, o1, o1 + 1];
-        let ab = [(0usize, 0usize), (0, 1), (1, 0), (1, 1)];
-        let mut wv = [0.0f64; 16];
-        let mut wp = [0.0f64; 16];
-        let mut wt = [0.0f64; 16];
-        for (c, &(a, b)) in ab.iter().enumerate() {
-            wv[4 * c] = wx.a[a] * wy.a[b];
-            wv[4 * c + 1] = wx.b[a] * wy.a[b];
-            wv[4 * c + 2] = wx.a[a] * wy.b[b];
-            wv[4 * c + 3] = wx.b[a] * wy.b[b];
-            wp[4 * c] = wx.da[a] * wy.a[b];
-            wp[4 * c + 1] = wx.db[a] * wy.a[b];
-            wp[4 * c + 2] = wx.da[a] * wy.b[b];
-            wp[4 * c + 3] = wx.db[a] * wy.b[b];
-            wt[4 * c] = wx.a[a] * wy.da[b];
-            wt[4 * c + 1] = wx.b[a] * wy.da[b];
-            wt[4 * c + 2] = wx.a[a] * wy.db[b];
-            wt[4 * c + 3] = wx.b[a] * wy.db[b];
-        }
         let data = &tab.data;
-        let mut v = [0.0f64; NPROP];
-        let mut dp = [0.0f64; 2];
-        let mut dt = [0.0f64; 2];
-        for (c, &off) in offsets.iter().enumerate() {
-            let node: &[f32; NODE] = data[off * NODE..off * NODE + NODE].try_into().expect("node slice");
-            for prop in 0..NPROP {
-                let n = &node[4 * prop..4 * prop + 4];
-                let w = &wv[4 * c..4 * c + 4];
-                v[prop] += w[0] * n[0] as f64 + w[1] * n[1] as f64 + w[2] * n[2] as f64 + w[3] * n[3] as f64;
+        // corners: (i, j), (i, j+1), (i+1, j), (i+1, j+1)
+        let (n00, n01, n10, n11) = (&data[o0], &data[o0 + 1], &data[o1], &data[o1 + 1]);
+        // Interpolate along T on the two pressure rows (the value and the d/dp component), then
+        // along p; straight loops over the property lanes, which the compiler vectorises.
+        let lane = |n: &[f64; MEM_NODE], comp: usize| -> [f64; LANES] {
+            let mut out = [0.0; LANES];
+            for (o, x) in out.iter_mut().zip(&n[comp * LANES..comp * LANES + LANES]) {
+                *o = *x;
             }
-            for prop in 0..2 {
-                let n = &node[4 * prop..4 * prop + 4];
-                let a = &wp[4 * c..4 * c + 4];
-                let b = &wt[4 * c..4 * c + 4];
-                dp[prop] += a[0] * n[0] as f64 + a[1] * n[1] as f64 + a[2] * n[2] as f64 + a[3] * n[3] as f64;
-                dt[prop] += b[0] * n[0] as f64 + b[1] * n[1] as f64 + b[2] * n[2] as f64 + b[3] * n[3] as f64;
+            out
+        };
+        let (f00, fp00, ft00, fpt00) = (lane(n00, 0), lane(n00, 1), lane(n00, 2), lane(n00, 3));
+        let (f01, fp01, ft01, fpt01) = (lane(n01, 0), lane(n01, 1), lane(n01, 2), lane(n01, 3));
+        let (f10, fp10, ft10, fpt10) = (lane(n10, 0), lane(n10, 1), lane(n10, 2), lane(n10, 3));
+        let (f11, fp11, ft11, fpt11) = (lane(n11, 0), lane(n11, 1), lane(n11, 2), lane(n11, 3));
+        fn along<const N: usize>(w: [f64; 4], a: &[f64], at: &[f64], b: &[f64], bt: &[f64]) -> [f64; N] {
+            let mut out = [0.0; N];
+            for q in 0..N {
+                out[q] = w[0] * a[q] + w[1] * at[q] + w[2] * b[q] + w[3] * bt[q];
             }
+            out
         }
+        let wv = [wy.a[0], wy.b[0], wy.a[1], wy.b[1]];
+        let wd = [wy.da[0], wy.db[0], wy.da[1], wy.db[1]];
+        let g0: [f64; LANES] = along(wv, &f00, &ft00, &f01, &ft01);
+        let g1: [f64; LANES] = along(wv, &f10, &ft10, &f11, &ft11);
+        let gp0: [f64; LANES] = along(wv, &fp00, &fpt00, &fp01, &fpt01);
+        let gp1: [f64; LANES] = along(wv, &fp10, &fpt10, &fp11, &fpt11);
+        // T derivatives are needed for density and internal energy only (lanes 0 and 1)
+        let gt0: [f64; 2] = along(wd, &f00, &ft00, &f01, &ft01);
+        let gt1: [f64; 2] = along(wd, &f10, &ft10, &f11, &ft11);
+        let gpt0: [f64; 2] = along(wd, &fp00, &fpt00, &fp01, &fpt01);
+        let gpt1: [f64; 2] = along(wd, &fp10, &fpt10, &fp11, &fpt11);
+        let v: [f64; LANES] = along([wx.a[0], wx.b[0], wx.a[1], wx.b[1]], &g0, &gp0, &g1, &gp1);
+        let dp: [f64; 2] = along([wx.da[0], wx.db[0], wx.da[1], wx.db[1]], &g0, &gp0, &g1, &gp1);
+        let dt: [f64; 2] = along([wx.a[0], wx.b[0], wx.a[1], wx.b[1]], &gt0, &gpt0, &gt1, &gpt1);
         let rho = v[0];
         let inv_rho = 1.0 / rho;
         let p_rho2 = p * inv_rho * inv_rho;
