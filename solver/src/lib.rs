@@ -6,4 +6,12 @@
 //! time), and nothing here knows about files, HTTP, SQL or async runtimes.
 #![warn(missing_docs)]
 
+pub mod case;
+pub mod closures;
+pub mod driver;
+pub mod exact;
 pub mod fluids;
+pub mod linalg;
+pub mod materials;
+pub mod model;
+pub mod scheme;

@@ -1,0 +1,70 @@
+//! Basic closures the scheme needs before the cryogenic closure set: single-phase wall friction
+//! and convection, a simple interfacial drag and interphase heat exchange. Each is a small pure
+//! function of local state.
+
+/// Darcy friction factor from Churchill's (1977) correlation, valid for laminar, transitional
+/// and turbulent flow.
+///
+/// f_D = 8 [ (8/Re)^12 + (A + B)^(−3/2) ]^(1/12),
+/// A = [2.457 ln(1 / ((7/Re)^0.9 + 0.27 ε/D))]^16, B = (37530/Re)^16.
+/// (The paper prints 2.475 for Churchill's 2.457, and writes the Fanning form 2[…]^(1/12) = f_D/4.)
+pub fn churchill_darcy(re: f64, relative_roughness: f64) -> f64 {
+    let re = re.max(1e-3);
+    let a = (2.457 * (1.0 / ((7.0 / re).powf(0.9) + 0.27 * relative_roughness)).ln()).powi(16);
+    let b = (37530.0 / re).powi(16);
+    8.0 * ((8.0 / re).powi(12) + (a + b).powf(-1.5)).powf(1.0 / 12.0)
+}
+
+/// Single-phase forced-convection heat transfer coefficient, W/(m² K): the larger of the
+/// laminar fully developed value Nu = 4.36 and Dittus–Boelter Nu = 0.023 Re^0.8 Pr^0.4.
+pub fn forced_convection_htc(re: f64, pr: f64, k: f64, d_h: f64) -> f64 {
+    let nu_lam: f64 = 4.36;
+    let nu_turb = 0.023 * re.max(0.0).powf(0.8) * pr.max(0.0).powf(0.4);
+    nu_lam.max(nu_turb) * k / d_h
+}
+
+/// Smooth step g(x) = 3x² − 2x³ on [0, 1] (0 below, 1 above), used to blend a disappearing
+/// phase into the continuous one between void fractions x_min and x_max. The paper prints
+/// x²(2x − 3), which is −g(x).
+pub fn smooth_step(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// Presence weight of a phase with volume fraction `frac`: 0 below `x_min`, 1 above `x_max`,
+/// the smooth step between.
+pub fn presence(frac: f64, x_min: f64, x_max: f64) -> f64 {
+    smooth_step((frac - x_min) / (x_max - x_min))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn churchill_limits() {
+        // laminar: 64/Re
+        assert!((churchill_darcy(500.0, 0.0) - 64.0 / 500.0).abs() < 1e-3 * 64.0 / 500.0);
+        // smooth turbulent at Re = 1e5: Blasius 0.316 Re^-0.25 = 0.0178; Churchill ≈ 0.0180
+        let f = churchill_darcy(1e5, 0.0);
+        assert!((f - 0.018).abs() < 0.0006, "{f}");
+    }
+
+    #[test]
+    fn convection_regimes() {
+        // laminar floor
+        assert!((forced_convection_htc(100.0, 1.0, 0.1, 0.01) - 43.6).abs() < 1e-9);
+        // turbulent: 0.023 * 1e5^0.8 * 2^0.4 * 0.1/0.01
+        let h = forced_convection_htc(1e5, 2.0, 0.1, 0.01);
+        assert!((h - 0.023 * 1e5f64.powf(0.8) * 2f64.powf(0.4) * 10.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn smooth_step_is_the_right_sign() {
+        assert_eq!(smooth_step(0.0), 0.0);
+        assert_eq!(smooth_step(1.0), 1.0);
+        assert!((smooth_step(0.5) - 0.5).abs() < 1e-15);
+        assert_eq!(presence(1e-9, 1e-7, 1e-2), 0.0);
+        assert_eq!(presence(0.5, 1e-7, 1e-2), 1.0);
+    }
+}

@@ -1,0 +1,482 @@
+//! The driver: initial state, time-step control, probes, profiles and the run summary.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::case::{BoundaryKind, Case};
+use crate::fluids::{FluidError, FluidTable, Phase};
+use crate::model::{BoundaryState, GRAVITY, Grid, State, boundary_state, clamp_to_phase};
+use crate::scheme::{Physics, Rejection, Scheme, StepBudget};
+
+/// Why a run ended without reaching its end time.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// The time step fell below the minimum.
+    #[error(
+        "time step fell below {min_dt_s:e} s at t = {time_s:.6} s: cell {cell}, {variable} = {value}: {reason} (try a smaller time.min_dt_s, a finer grid, or check the boundary conditions)"
+    )]
+    StepTooSmall {
+        /// Simulated time, s.
+        time_s: f64,
+        /// The minimum step, s.
+        min_dt_s: f64,
+        /// Cell or junction index.
+        cell: usize,
+        /// Variable that failed.
+        variable: &'static str,
+        /// Its value.
+        value: f64,
+        /// Why.
+        reason: &'static str,
+    },
+    /// `time.max_steps` reached.
+    #[error("stopped after time.max_steps = {steps} steps at t = {time_s:.6} s")]
+    MaxSteps {
+        /// Steps taken.
+        steps: u64,
+        /// Simulated time, s.
+        time_s: f64,
+    },
+    /// `time.max_wall_s` reached.
+    #[error("stopped after time.max_wall_s = {wall_s} s of computing at t = {time_s:.6} s")]
+    MaxWall {
+        /// Limit, s.
+        wall_s: f64,
+        /// Simulated time, s.
+        time_s: f64,
+    },
+    /// A property query failed while setting up.
+    #[error("{0}")]
+    Fluid(#[from] FluidError),
+    /// The initial state cannot be built.
+    #[error("initial state: {0}")]
+    Initial(String),
+}
+
+/// One observation: `time_s,station,x_m,quantity,value` (DESIGN.md §3.2).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Observation {
+    /// Time, s.
+    pub time_s: f64,
+    /// Station name.
+    pub station: String,
+    /// Station position, m.
+    pub x_m: f64,
+    /// Quantity name.
+    pub quantity: &'static str,
+    /// Value, SI.
+    pub value: f64,
+}
+
+/// One profile value: `time_s,x_m,quantity,value`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProfilePoint {
+    /// Time, s.
+    pub time_s: f64,
+    /// Position (cell centre, or junction for velocities), m.
+    pub x_m: f64,
+    /// Quantity name.
+    pub quantity: &'static str,
+    /// Value, SI.
+    pub value: f64,
+}
+
+/// Run statistics and derived results (`summary.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Accepted steps.
+    pub steps: u64,
+    /// Rejected (retried) steps.
+    pub rejected_steps: u64,
+    /// Wall-clock seconds of the integration itself.
+    pub wall_time_s: f64,
+    /// Simulated time reached, s.
+    pub simulated_time_s: f64,
+    /// Smallest accepted step, s.
+    pub min_dt_s: f64,
+    /// Largest accepted step, s.
+    pub max_dt_s: f64,
+    /// |Δ mass − (in − out)| / max(initial mass, throughput).
+    pub mass_balance_error: f64,
+    /// Physical total-energy balance (internal + kinetic + potential + wall), relative.
+    pub energy_balance_error: f64,
+    /// The scheme's own discrete energy budget residual, relative.
+    pub scheme_energy_error: f64,
+    /// Largest |volume error| seen.
+    pub max_volume_error: f64,
+    /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
+    pub chilldown_time_s: BTreeMap<String, Option<f64>>,
+    /// First time the wall falls below 150 K, per station.
+    pub quench_arrival_s: BTreeMap<String, Option<f64>>,
+    /// Inlet liquid temperature used for the chilldown criterion, K.
+    pub inlet_liquid_temperature_k: f64,
+}
+
+/// Everything a run produces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// Probe time series.
+    pub probes: Vec<Observation>,
+    /// Whole-line profiles.
+    pub profiles: Vec<ProfilePoint>,
+    /// Statistics and derived results.
+    pub summary: Summary,
+    /// The final state.
+    pub final_state: State,
+}
+
+/// Progress of a run, for a progress bar.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// End time, s.
+    pub end_s: f64,
+    /// Steps so far.
+    pub steps: u64,
+}
+
+/// Physics settings of a case.
+pub fn physics_of(case: &Case) -> Physics {
+    let p = &case.physics;
+    Physics {
+        phase_change: p.phase_change,
+        wall_heat_transfer: p.wall_heat_transfer,
+        interphase_heat_transfer: p.interphase_heat_transfer,
+        interphase_drag: p.interphase_drag,
+        wall_friction: p.wall_friction,
+        gravity: p.gravity,
+        virtual_mass: p.virtual_mass,
+        fixed_wall_htc: p.wall_htc_w_m2k,
+        ambient_temperature_k: case.ambient.temperature_k,
+        ambient_htc_w_m2k: case.ambient.heat_transfer_coefficient_w_m2k,
+        ..Physics::default()
+    }
+}
+
+/// The state at t = 0 from the case's `[initial]` section.
+pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<State, SimError> {
+    let n = grid.n;
+    let ini = &case.initial;
+    let mut s = State {
+        time: 0.0,
+        p: vec![0.0; n],
+        alpha: vec![0.0; n],
+        t_g: vec![0.0; n],
+        t_l: vec![0.0; n],
+        m_g: vec![0.0; n],
+        m_l: vec![0.0; n],
+        e_g: vec![0.0; n],
+        e_l: vec![0.0; n],
+        gas: Vec::with_capacity(n),
+        liquid: Vec::with_capacity(n),
+        volume_error: vec![0.0; n],
+        v_g: grid.x_junction.iter().map(|&x| ini.gas_velocity_m_s.at(x)).collect(),
+        v_l: grid.x_junction.iter().map(|&x| ini.liquid_velocity_m_s.at(x)).collect(),
+        t_w: vec![0.0; n],
+        e_w: vec![0.0; n],
+        wall_heat_flux: vec![0.0; n],
+    };
+    for i in 0..n {
+        let x = grid.x_cell[i];
+        let p = ini.pressure_pa.at(x);
+        let a = ini.void_fraction.at(x);
+        let tg_req = ini.gas_temperature_k.at(x);
+        let tl_req = ini.liquid_temperature_k.as_ref().map_or(tg_req, |t| t.at(x));
+        // a phase that is present must be representable as given; an absent one takes the
+        // nearest representable temperature
+        let tg = if a > 0.0 { tg_req } else { clamp_to_phase(fluid, Phase::Gas, p, tg_req) };
+        let tl = if a < 1.0 && ini.liquid_temperature_k.is_some() {
+            tl_req
+        } else {
+            clamp_to_phase(fluid, Phase::Liquid, p, tl_req)
+        };
+        let gp = fluid.phase_props(Phase::Gas, p, tg).map_err(|e| SimError::Initial(format!("at x = {x} m: {e}")))?;
+        let lp =
+            fluid.phase_props(Phase::Liquid, p, tl).map_err(|e| SimError::Initial(format!("at x = {x} m: {e}")))?;
+        s.p[i] = p;
+        s.alpha[i] = a;
+        s.t_g[i] = tg;
+        s.t_l[i] = tl;
+        s.m_g[i] = a * gp.rho;
+        s.m_l[i] = (1.0 - a) * lp.rho;
+        s.e_g[i] = s.m_g[i] * gp.u;
+        s.e_l[i] = s.m_l[i] * lp.u;
+        s.gas.push(gp);
+        s.liquid.push(lp);
+        let tw = ini.wall_temperature_k.at(x);
+        s.t_w[i] = tw;
+        s.e_w[i] = grid.material.specific_energy_j_kg(tw);
+    }
+    Ok(s)
+}
+
+/// The temperature a thermocouple in the stream reads: the observation function g(x) of the
+/// paper's state-space model. Defined as the phasic temperatures blended by volume fraction,
+/// T_f = (1 − α) T_l + α T_g: a probe in liquid-filled flow reads the liquid, in vapour the
+/// vapour, and in between the phase that wets it in proportion to its share of the section.
+pub fn fluid_temperature(alpha: f64, t_g: f64, t_l: f64) -> f64 {
+    (1.0 - alpha) * t_l + alpha * t_g
+}
+
+/// Runs a case to its end time.
+pub fn run(case: &Case, fluid: &FluidTable, progress: &mut dyn FnMut(Progress)) -> Result<Output, SimError> {
+    let grid = Grid::from_case(case);
+    let state = initial_state(case, fluid, &grid)?;
+    let physics = physics_of(case);
+    let mut scheme = Scheme::new(fluid, grid.clone(), physics);
+    let t = &case.time;
+    let n = grid.n;
+    let clock = Instant::now();
+    let mut s = state;
+    let mut dt = t.initial_dt_s.min(t.max_dt_s);
+    let mut steps = 0u64;
+    let mut rejected = 0u64;
+    let (mut min_dt, mut max_dt) = (f64::INFINITY, 0.0f64);
+    let mut probes = Vec::new();
+    let mut profiles = Vec::new();
+    let mut next_out = 0.0;
+    let mut next_prof = 0.0;
+    let mut cum = StepBudget::default();
+    let mut max_verr: f64 = 0.0;
+    let p_guess = s.p[0];
+    let bstate = |time: f64| -> Result<[BoundaryState; 2], SimError> {
+        Ok([
+            boundary_state(&case.inlet, time, fluid, p_guess)?,
+            boundary_state(&case.outlet, time, fluid, s_last_p(&case.outlet, p_guess))?,
+        ])
+    };
+    let inlet_tl = boundary_state(&case.inlet, 0.0, fluid, p_guess)?.t_l;
+    let stations: Vec<(String, f64, usize)> =
+        case.stations.iter().map(|st| (st.name.clone(), st.x_m, grid.cell_at(st.x_m))).collect();
+    let mut chill: BTreeMap<String, Option<f64>> = stations.iter().map(|s| (s.0.clone(), None)).collect();
+    let mut quench: BTreeMap<String, Option<f64>> = stations.iter().map(|s| (s.0.clone(), None)).collect();
+    let m0 = total_mass(&s, &grid);
+    let e0_scheme = fluid_internal_energy(&s, &grid);
+    let e0_total = total_energy(&s, &grid, case.physics.gravity);
+    let end = t.end_s;
+    let eps = 1e-9 * end;
+    let mut easy_steps = 0u32;
+    loop {
+        if s.time >= next_out - eps {
+            record_probes(&mut probes, &s, &grid, &stations);
+            next_out += t.output_interval_s;
+        }
+        if s.time >= next_prof - eps {
+            record_profile(&mut profiles, &s, &grid);
+            next_prof += t.profile_interval_s;
+        }
+        for (name, _, c) in &stations {
+            let tw = s.t_w[*c];
+            if chill[name].is_none() && tw < inlet_tl + 15.0 {
+                chill.insert(name.clone(), Some(s.time));
+            }
+            if quench[name].is_none() && tw < 150.0 {
+                quench.insert(name.clone(), Some(s.time));
+            }
+        }
+        if s.time >= end - eps {
+            break;
+        }
+        if let Some(ms) = t.max_steps
+            && steps >= ms
+        {
+            return Err(SimError::MaxSteps { steps, time_s: s.time });
+        }
+        if let Some(mw) = t.max_wall_s
+            && clock.elapsed().as_secs_f64() > mw
+        {
+            return Err(SimError::MaxWall { wall_s: mw, time_s: s.time });
+        }
+        // Courant limit for accuracy, and landing exactly on output times
+        let mut courant = f64::INFINITY;
+        for j in 0..=n {
+            let dxj = grid.dx_junction(j);
+            let v = s.v_g[j].abs().max(s.v_l[j].abs());
+            if v > 0.0 {
+                courant = courant.min(t.max_courant * dxj / v);
+            }
+        }
+        let target = next_out.min(next_prof).min(end);
+        let mut h = dt.min(t.max_dt_s).min(courant).min(target - s.time);
+        if h <= 0.0 {
+            h = (target - s.time).max(t.min_dt_s);
+        }
+        let b0 = bstate(s.time)?;
+        loop {
+            let b1 = bstate(s.time + h)?;
+            match scheme.step(&s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]]) {
+                Ok((next, report)) => {
+                    steps += 1;
+                    min_dt = min_dt.min(h);
+                    max_dt = max_dt.max(h);
+                    max_verr = max_verr.max(report.max_volume_error);
+                    add_budget(&mut cum, &report.budget);
+                    if report.change_ratio < 0.5 {
+                        easy_steps += 1;
+                    } else {
+                        easy_steps = 0;
+                    }
+                    // grow when several steps in a row were easy; keep the step otherwise
+                    dt = if easy_steps >= 3 { (h * 1.25).max(dt) } else { h.max(dt.min(h * 1.25)) };
+                    if report.change_ratio > 0.8 {
+                        dt = h * 0.8;
+                    }
+                    s = next;
+                    break;
+                }
+                Err(Rejection { cell, variable, value, reason }) => {
+                    rejected += 1;
+                    h *= 0.5;
+                    dt = h;
+                    easy_steps = 0;
+                    if h < t.min_dt_s {
+                        return Err(SimError::StepTooSmall {
+                            time_s: s.time,
+                            min_dt_s: t.min_dt_s,
+                            cell,
+                            variable,
+                            value,
+                            reason,
+                        });
+                    }
+                }
+            }
+        }
+        if steps.is_multiple_of(64) {
+            progress(Progress { time_s: s.time, end_s: end, steps });
+        }
+    }
+    let wall_time_s = clock.elapsed().as_secs_f64();
+    let m1 = total_mass(&s, &grid);
+    let net_in = cum.mass_in - cum.mass_out;
+    let mass_balance_error = (m1 - m0 - net_in).abs() / m0.max(cum.mass_in.abs() + cum.mass_out.abs()).max(1e-300);
+    let e1_scheme = fluid_internal_energy(&s, &grid);
+    let scheme_terms = cum.energy_flux + cum.pressure_work + cum.wall_heat + cum.adjustment;
+    let scheme_scale = cum.energy_flux.abs() + cum.pressure_work.abs() + cum.wall_heat.abs() + e0_scheme.abs().max(1.0);
+    let scheme_energy_error = (e1_scheme - e0_scheme - scheme_terms).abs() / scheme_scale;
+    let e1_total = total_energy(&s, &grid, case.physics.gravity);
+    let phys_terms = cum.total_energy_flux + cum.ambient_heat;
+    let phys_scale =
+        cum.total_energy_flux.abs() + cum.ambient_heat.abs() + cum.wall_heat.abs() + (e1_total - e0_total).abs();
+    let energy_balance_error =
+        if phys_scale > 0.0 { (e1_total - e0_total - phys_terms).abs() / phys_scale } else { 0.0 };
+    Ok(Output {
+        probes,
+        profiles,
+        summary: Summary {
+            steps,
+            rejected_steps: rejected,
+            wall_time_s,
+            simulated_time_s: s.time,
+            min_dt_s: if min_dt.is_finite() { min_dt } else { 0.0 },
+            max_dt_s: max_dt,
+            mass_balance_error,
+            energy_balance_error,
+            scheme_energy_error,
+            max_volume_error: max_verr,
+            chilldown_time_s: chill,
+            quench_arrival_s: quench,
+            inlet_liquid_temperature_k: inlet_tl,
+        },
+        final_state: s,
+    })
+}
+
+fn s_last_p(b: &crate::case::BoundarySection, fallback: f64) -> f64 {
+    match (&b.kind, &b.pressure_pa) {
+        (BoundaryKind::Pressure | BoundaryKind::Reservoir, Some(p)) => p.at(0.0),
+        _ => fallback,
+    }
+}
+
+fn add_budget(c: &mut StepBudget, b: &StepBudget) {
+    c.mass_in += b.mass_in;
+    c.mass_out += b.mass_out;
+    c.energy_flux += b.energy_flux;
+    c.pressure_work += b.pressure_work;
+    c.wall_heat += b.wall_heat;
+    c.ambient_heat += b.ambient_heat;
+    c.adjustment += b.adjustment;
+    c.total_energy_flux += b.total_energy_flux;
+}
+
+/// Total fluid mass on the line, kg.
+pub fn total_mass(s: &State, g: &Grid) -> f64 {
+    (0..g.n).map(|i| (s.m_g[i] + s.m_l[i]) * g.volume[i]).sum()
+}
+
+fn fluid_internal_energy(s: &State, g: &Grid) -> f64 {
+    (0..g.n).map(|i| (s.e_g[i] + s.e_l[i]) * g.volume[i]).sum()
+}
+
+/// Fluid internal + kinetic + potential energy plus wall internal energy, J.
+fn total_energy(s: &State, g: &Grid, gravity: bool) -> f64 {
+    let grav = if gravity { GRAVITY } else { 0.0 };
+    let mut z = 0.0;
+    let mut total = 0.0;
+    for i in 0..g.n {
+        let zc = z + 0.5 * g.dx[i] * g.sin_cell[i];
+        z += g.dx[i] * g.sin_cell[i];
+        let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
+        let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
+        let m = s.m_g[i] + s.m_l[i];
+        total += g.volume[i] * (s.e_g[i] + s.e_l[i] + 0.5 * (s.m_g[i] * vg * vg + s.m_l[i] * vl * vl) + m * grav * zc);
+        total += g.wall_mass[i] * s.e_w[i];
+    }
+    total
+}
+
+fn record_probes(out: &mut Vec<Observation>, s: &State, g: &Grid, stations: &[(String, f64, usize)]) {
+    for (name, x, c) in stations {
+        let i = *c;
+        let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
+        let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
+        let a = s.alpha[i];
+        let mass_flow = g.area_cell[i] * (s.m_g[i] * vg + s.m_l[i] * vl);
+        let values: [(&'static str, f64); 11] = [
+            ("wall_temperature_k", s.t_w[i]),
+            ("fluid_temperature_k", fluid_temperature(a, s.t_g[i], s.t_l[i])),
+            ("pressure_pa", s.p[i]),
+            ("void_fraction", a),
+            ("gas_temperature_k", s.t_g[i]),
+            ("liquid_temperature_k", s.t_l[i]),
+            ("gas_velocity_m_s", vg),
+            ("liquid_velocity_m_s", vl),
+            ("wall_heat_flux_w_m2", s.wall_heat_flux[i]),
+            ("mass_flow_kg_s", mass_flow),
+            ("volume_error", s.volume_error[i]),
+        ];
+        for (quantity, value) in values {
+            if quantity == "volume_error" {
+                continue;
+            }
+            out.push(Observation { time_s: s.time, station: name.clone(), x_m: *x, quantity, value });
+        }
+    }
+}
+
+fn record_profile(out: &mut Vec<ProfilePoint>, s: &State, g: &Grid) {
+    for i in 0..g.n {
+        let x = g.x_cell[i];
+        let a = s.alpha[i];
+        for (quantity, value) in [
+            ("wall_temperature_k", s.t_w[i]),
+            ("fluid_temperature_k", fluid_temperature(a, s.t_g[i], s.t_l[i])),
+            ("pressure_pa", s.p[i]),
+            ("void_fraction", a),
+            ("gas_temperature_k", s.t_g[i]),
+            ("liquid_temperature_k", s.t_l[i]),
+        ] {
+            out.push(ProfilePoint { time_s: s.time, x_m: x, quantity, value });
+        }
+    }
+    for j in 0..=g.n {
+        let x = g.x_junction[j];
+        out.push(ProfilePoint { time_s: s.time, x_m: x, quantity: "gas_velocity_m_s", value: s.v_g[j] });
+        out.push(ProfilePoint { time_s: s.time, x_m: x, quantity: "liquid_velocity_m_s", value: s.v_l[j] });
+    }
+}

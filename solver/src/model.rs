@@ -1,0 +1,230 @@
+//! The discretised problem: grid, boundary states and the solution state.
+//!
+//! Staggered grid: cells `0..n` hold pressure, void fraction, phasic temperatures, conserved
+//! phasic masses and energies and the wall temperature; junctions `0..=n` hold phasic
+//! velocities. Junction `j` joins cell `j - 1` and cell `j`; junction 0 is the inlet boundary and
+//! junction `n` the outlet boundary. `x` is the distance from the inlet end.
+
+use crate::case::{BoundaryKind, BoundarySection, Case, Profile};
+use crate::fluids::{FluidError, FluidTable, Phase, PhaseProps};
+use crate::materials::WallMaterial;
+
+/// Standard gravity, m/s².
+pub const GRAVITY: f64 = 9.80665;
+
+/// Geometry of the discretised line.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    /// Number of cells.
+    pub n: usize,
+    /// Cell lengths, m.
+    pub dx: Vec<f64>,
+    /// Cell centres, m from the inlet.
+    pub x_cell: Vec<f64>,
+    /// Junction positions, m from the inlet (`n + 1` of them).
+    pub x_junction: Vec<f64>,
+    /// Cell flow areas, m².
+    pub area_cell: Vec<f64>,
+    /// Junction flow areas, m².
+    pub area_junction: Vec<f64>,
+    /// Cell volumes, m³.
+    pub volume: Vec<f64>,
+    /// Hydraulic diameter, m.
+    pub d_h: f64,
+    /// Inner perimeter, m.
+    pub perimeter: f64,
+    /// Sine of the inclination of each cell (flow direction, positive upwards).
+    pub sin_cell: Vec<f64>,
+    /// Sine of the inclination at each junction (mean of the neighbouring cells).
+    pub sin_junction: Vec<f64>,
+    /// Wall mass of each cell, kg.
+    pub wall_mass: Vec<f64>,
+    /// Outer wall surface of each cell, m².
+    pub outer_area: Vec<f64>,
+    /// Wall material.
+    pub material: WallMaterial,
+    /// Relative roughness ε/D.
+    pub relative_roughness: f64,
+}
+
+impl Grid {
+    /// Builds a uniform grid from a case.
+    pub fn from_case(case: &Case) -> Self {
+        let p = &case.pipe;
+        let n = p.cells;
+        let dx = p.length_m / n as f64;
+        let d = p.inner_diameter_m;
+        let area = std::f64::consts::PI * d * d / 4.0;
+        let d_out = d + 2.0 * p.wall_thickness_m;
+        let wall_area = std::f64::consts::PI * (d_out * d_out - d * d) / 4.0;
+        let material = case.wall_material();
+        let x_cell: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) * dx).collect();
+        let sin_cell: Vec<f64> = x_cell.iter().map(|&x| p.inclination_deg.step_at(x).to_radians().sin()).collect();
+        let sin_junction = (0..=n)
+            .map(|j| {
+                let l = sin_cell[j.saturating_sub(1)];
+                let r = sin_cell[j.min(n - 1)];
+                0.5 * (l + r)
+            })
+            .collect();
+        Self {
+            n,
+            dx: vec![dx; n],
+            x_cell,
+            x_junction: (0..=n).map(|j| j as f64 * dx).collect(),
+            area_cell: vec![area; n],
+            area_junction: vec![area; n + 1],
+            volume: vec![area * dx; n],
+            d_h: d,
+            perimeter: std::f64::consts::PI * d,
+            sin_cell,
+            sin_junction,
+            wall_mass: vec![material.density_kg_m3() * wall_area * dx; n],
+            outer_area: vec![std::f64::consts::PI * d_out * dx; n],
+            material,
+            relative_roughness: p.roughness_m / d,
+        }
+    }
+
+    /// Length of the momentum control volume around junction `j`, m.
+    pub fn dx_junction(&self, j: usize) -> f64 {
+        let l = if j > 0 { self.dx[j - 1] } else { 0.0 };
+        let r = if j < self.n { self.dx[j] } else { 0.0 };
+        0.5 * (l + r)
+    }
+
+    /// The cell holding `x` (clamped to the line).
+    pub fn cell_at(&self, x: f64) -> usize {
+        let dx = self.dx[0];
+        ((x / dx).floor().max(0.0) as usize).min(self.n - 1)
+    }
+}
+
+/// The fluid state on one side of a boundary junction, at one time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoundaryState {
+    /// What kind of boundary.
+    pub kind: BoundaryKind,
+    /// Pressure, Pa (for reservoir and pressure boundaries).
+    pub p: f64,
+    /// Gas volume fraction of fluid entering through it.
+    pub alpha: f64,
+    /// Gas temperature of entering fluid, K.
+    pub t_g: f64,
+    /// Liquid temperature of entering fluid, K.
+    pub t_l: f64,
+    /// Prescribed gas velocity (velocity boundaries), m/s.
+    pub v_g: f64,
+    /// Prescribed liquid velocity (velocity boundaries), m/s.
+    pub v_l: f64,
+    /// Gas properties of the entering fluid.
+    pub gas: PhaseProps,
+    /// Liquid properties of the entering fluid.
+    pub liquid: PhaseProps,
+    /// Fraction of the junction area open (valve opening), 0..1.
+    pub open_fraction: f64,
+    /// Loss coefficient, velocity heads.
+    pub loss: f64,
+}
+
+/// Evaluates a boundary section at time `t` against the fluid table.
+///
+/// A reservoir holds liquid: subcooled at `temperature_k`, or saturated with vapour `quality`
+/// (void fraction from the homogeneous relation). Its vapour, should it enter, is saturated.
+/// Temperatures the phase tables cannot represent at the boundary pressure are moved to the
+/// nearest represented value (a liquid temperature given for an all-gas inflow, say).
+pub fn boundary_state(
+    b: &BoundarySection,
+    t: f64,
+    fluid: &FluidTable,
+    fallback_p: f64,
+) -> Result<BoundaryState, FluidError> {
+    let at = |p: &Option<Profile>, default: f64| p.as_ref().map_or(default, |p| p.at(t));
+    let p = at(&b.pressure_pa, fallback_p);
+    let open = if b.valve_opening_time_s > 0.0 { (t / b.valve_opening_time_s).clamp(0.0, 1.0) } else { 1.0 };
+    let sat = fluid.saturation(p).ok();
+    let (alpha, t_g, t_l) = match b.kind {
+        BoundaryKind::Reservoir => {
+            let s = fluid.saturation(p)?;
+            match (&b.temperature_k, &b.quality) {
+                (Some(temp), _) => (0.0, s.t_sat, temp.at(t).min(s.t_sat)),
+                (None, Some(q)) => {
+                    let x = q.at(t);
+                    let alpha = if x <= 0.0 { 0.0 } else { x * s.rho_l / (x * s.rho_l + (1.0 - x) * s.rho_g) };
+                    (alpha, s.t_sat, s.t_sat)
+                }
+                (None, None) => (0.0, s.t_sat, s.t_sat),
+            }
+        }
+        _ => {
+            let t_g = at(&b.gas_temperature_k, sat.map_or(300.0, |s| s.t_sat));
+            let t_l = at(&b.liquid_temperature_k, sat.map_or(t_g, |s| t_g.min(s.t_sat)));
+            (at(&b.void_fraction, 1.0), t_g, t_l)
+        }
+    };
+    let t_g = clamp_to_phase(fluid, Phase::Gas, p, t_g);
+    let t_l = clamp_to_phase(fluid, Phase::Liquid, p, t_l);
+    Ok(BoundaryState {
+        kind: b.kind,
+        p,
+        alpha,
+        t_g,
+        t_l,
+        v_g: at(&b.gas_velocity_m_s, 0.0),
+        v_l: at(&b.liquid_velocity_m_s, 0.0),
+        gas: fluid.phase_props(Phase::Gas, p, t_g)?,
+        liquid: fluid.phase_props(Phase::Liquid, p, t_l)?,
+        open_fraction: open,
+        loss: b.loss_coefficient,
+    })
+}
+
+/// Moves `t` into the temperature range the `phase` table covers at pressure `p`.
+pub fn clamp_to_phase(fluid: &FluidTable, phase: Phase, p: f64, t: f64) -> f64 {
+    match fluid.phase_temperature_range(phase, p) {
+        Some((lo, hi)) => {
+            let margin = 1e-6 * (hi - lo);
+            t.clamp(lo + margin, hi - margin)
+        }
+        None => t,
+    }
+}
+
+/// The solution: per-cell and per-junction arrays (structure of arrays).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct State {
+    /// Time, s.
+    pub time: f64,
+    /// Pressure, Pa.
+    pub p: Vec<f64>,
+    /// Gas volume fraction (normalised so that gas + liquid fill the cell).
+    pub alpha: Vec<f64>,
+    /// Gas temperature, K.
+    pub t_g: Vec<f64>,
+    /// Liquid temperature, K.
+    pub t_l: Vec<f64>,
+    /// Gas mass per unit volume α ρ_g, kg/m³ (conserved).
+    pub m_g: Vec<f64>,
+    /// Liquid mass per unit volume (1 − α) ρ_l, kg/m³ (conserved).
+    pub m_l: Vec<f64>,
+    /// Gas internal energy per unit volume α ρ_g u_g, J/m³ (conserved).
+    pub e_g: Vec<f64>,
+    /// Liquid internal energy per unit volume, J/m³ (conserved).
+    pub e_l: Vec<f64>,
+    /// Gas properties at (p, T_g).
+    pub gas: Vec<PhaseProps>,
+    /// Liquid properties at (p, T_l).
+    pub liquid: Vec<PhaseProps>,
+    /// Volume error α_g + α_l − 1 of the conserved masses at the state's pressure and temperatures.
+    pub volume_error: Vec<f64>,
+    /// Gas velocity at each junction, m/s.
+    pub v_g: Vec<f64>,
+    /// Liquid velocity at each junction, m/s.
+    pub v_l: Vec<f64>,
+    /// Wall temperature, K.
+    pub t_w: Vec<f64>,
+    /// Wall specific internal energy, J/kg (conserved; `t_w` follows from it).
+    pub e_w: Vec<f64>,
+    /// Heat flux from the wall into the fluid over the last step, W/m² of inner wall.
+    pub wall_heat_flux: Vec<f64>,
+}

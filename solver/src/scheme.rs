@@ -1,0 +1,1049 @@
+//! One time step of the nearly-implicit two-fluid scheme.
+//!
+//! The step follows the RELAP5-3D nearly-implicit method as the paper describes it (Sec.
+//! "Algorithm"), in two steps:
+//!
+//! **Step 1.**
+//! (a) *Provisional velocities*: the phasic momentum equations at every junction with implicit
+//! convection (donor-cell v ∂v/∂x, linearised about the old velocity), implicit wall friction,
+//! interphase drag, virtual mass (its time-derivative term) and form losses, with the old
+//! pressure gradient: a block-tridiagonal system with 2×2 blocks over the junctions.
+//! (b) *Velocity–pressure coupling*: the new velocity of a junction is its provisional velocity
+//! plus a correction linear in the change of the pressure difference across it, through the
+//! inverse of the junction's own 2×2 block: v = ṽ + w (δp_L − δp_R).
+//! (c) *Pressure*: each cell's expanded (linearised) gas mass, liquid mass, gas energy and liquid
+//! energy equations in the unknowns (δp, δα, δT_g, δT_l) — with interphase heat and mass
+//! transfer and the wall heat linearised implicitly in pressure and phasic temperatures, and the
+//! lumped wall temperature eliminated locally — are solved as a 4×4 system in terms of the
+//! neighbouring pressure changes; the first row gives a tridiagonal pressure equation.
+//! (d) Back-substitution gives the new velocities, provisional void fraction and temperatures,
+//! and provisional interphase and wall heat and mass transfer.
+//!
+//! **Step 2.** The unexpanded (conservative) phasic mass and energy equations with the new
+//! velocities, new-time donor-cell fluxes and the provisional sources: four independent
+//! tridiagonal systems. Mass is conserved to round-off. The wall energy changes by exactly the
+//! heat the fluid received. The state then follows from the conserved masses and energies at the
+//! new pressure; the mismatch between the two phases' volumes and the cell volume (the volume
+//! error) is carried into the next step's pressure equation, which drives it back to zero.
+//!
+//! Primary thermodynamic variables are pressure and phasic temperatures (see
+//! [`crate::fluids`]); the primary conserved variables are the phasic masses and internal
+//! energies per unit volume.
+
+// Index loops over cells and junctions mirror the discrete equations (i, j ± 1) one to one.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
+
+use crate::case::BoundaryKind;
+use crate::closures::{churchill_darcy, forced_convection_htc, presence};
+use crate::fluids::{FluidTable, Phase, PhaseProps};
+use crate::linalg;
+use crate::model::{BoundaryState, GRAVITY, Grid, State, clamp_to_phase};
+
+/// Physics switches and the constants of the basic closures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Physics {
+    /// Interphase and wall mass transfer.
+    pub phase_change: bool,
+    /// Wall–fluid heat transfer.
+    pub wall_heat_transfer: bool,
+    /// Heat transfer between the phases.
+    pub interphase_heat_transfer: bool,
+    /// Interfacial drag.
+    pub interphase_drag: bool,
+    /// Wall friction.
+    pub wall_friction: bool,
+    /// Gravity.
+    pub gravity: bool,
+    /// Virtual mass.
+    pub virtual_mass: bool,
+    /// Fixed wall heat transfer coefficient, W/(m² K), instead of correlations.
+    pub fixed_wall_htc: Option<f64>,
+    /// Virtual-mass coefficient C in C α β ρ_m ∂(v_g − v_l)/∂t.
+    pub virtual_mass_coefficient: f64,
+    /// Interfacial drag: F_i = c α (1 − α) ρ_m |v_r| / D_h.
+    pub drag_coefficient: f64,
+    /// Volumetric interphase heat transfer coefficient scale, W/(m³ K), times α(1 − α).
+    pub interphase_htc_w_m3k: f64,
+    /// Lower phase-blending threshold (void fraction of the disappearing phase).
+    pub blend_min: f64,
+    /// Upper phase-blending threshold.
+    pub blend_max: f64,
+    /// Ambient temperature, K.
+    pub ambient_temperature_k: f64,
+    /// Ambient heat transfer coefficient on the outer wall, W/(m² K).
+    pub ambient_htc_w_m2k: f64,
+}
+
+impl Default for Physics {
+    fn default() -> Self {
+        Self {
+            phase_change: true,
+            wall_heat_transfer: true,
+            interphase_heat_transfer: true,
+            interphase_drag: true,
+            wall_friction: true,
+            gravity: true,
+            virtual_mass: true,
+            fixed_wall_htc: None,
+            virtual_mass_coefficient: 0.5,
+            drag_coefficient: 1.0,
+            interphase_htc_w_m3k: 1.0e5,
+            blend_min: 1e-7,
+            blend_max: 1e-2,
+            ambient_temperature_k: 290.0,
+            ambient_htc_w_m2k: 0.0,
+        }
+    }
+}
+
+/// Why a step was rejected (the driver halves the time step and retries).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejection {
+    /// Cell (or junction) index.
+    pub cell: usize,
+    /// Which variable.
+    pub variable: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// Why.
+    pub reason: &'static str,
+}
+
+/// Budget terms of one step (SI, integrated over the step and the line).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepBudget {
+    /// Mass entering through the inlet junction, kg (negative: leaving).
+    pub mass_in: f64,
+    /// Mass leaving through the outlet junction, kg (negative: entering).
+    pub mass_out: f64,
+    /// Internal-energy flux in at the inlet minus out at the outlet, J.
+    pub energy_flux: f64,
+    /// Pressure work terms of the phasic energy equations, J.
+    pub pressure_work: f64,
+    /// Heat from the wall into the fluid, J.
+    pub wall_heat: f64,
+    /// Heat from the ambient into the wall, J.
+    pub ambient_heat: f64,
+    /// Energy added by state adjustments (vanishing-phase clean-up), J.
+    pub adjustment: f64,
+    /// Total-energy (h + v²/2 + g z) inflow minus outflow through the boundaries, J.
+    pub total_energy_flux: f64,
+}
+
+/// What a step produced besides the new state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepReport {
+    /// Largest change of a controlled variable as a fraction of its allowed change (≤ 1).
+    pub change_ratio: f64,
+    /// Largest |volume error| over the cells.
+    pub max_volume_error: f64,
+    /// Budget terms.
+    pub budget: StepBudget,
+}
+
+/// Largest allowed relative change per step (the paper's 25 %).
+pub const MAX_RELATIVE_CHANGE: f64 = 0.25;
+/// Scales below which a change is measured against the scale instead of the value, so that
+/// quantities near zero do not stall the step control.
+pub const SCALE_PRESSURE_PA: f64 = 2.0e4;
+/// Void-fraction scale.
+pub const SCALE_VOID: f64 = 0.2;
+/// Temperature scale, K.
+pub const SCALE_TEMPERATURE_K: f64 = 20.0;
+/// Velocity scale, m/s.
+pub const SCALE_VELOCITY_M_S: f64 = 2.0;
+/// Largest volume error accepted after a step.
+pub const MAX_VOLUME_ERROR: f64 = 2e-3;
+
+/// Linear function of the cell unknowns (δp, δα, δT_g, δT_l): c0 + c·x.
+#[derive(Debug, Clone, Copy, Default)]
+struct Lin {
+    c0: f64,
+    c: [f64; 4],
+}
+
+impl Lin {
+    fn constant(c0: f64) -> Self {
+        Self { c0, c: [0.0; 4] }
+    }
+    fn var(base: f64, k: usize) -> Self {
+        let mut c = [0.0; 4];
+        c[k] = 1.0;
+        Self { c0: base, c }
+    }
+    fn scale(self, s: f64) -> Self {
+        Self { c0: self.c0 * s, c: self.c.map(|v| v * s) }
+    }
+    fn add(self, o: Self) -> Self {
+        let mut c = self.c;
+        for (a, b) in c.iter_mut().zip(o.c) {
+            *a += b;
+        }
+        Self { c0: self.c0 + o.c0, c }
+    }
+    fn sub(self, o: Self) -> Self {
+        self.add(o.scale(-1.0))
+    }
+    fn eval(&self, x: &Vector4<f64>) -> f64 {
+        self.c0 + self.c[0] * x[0] + self.c[1] * x[1] + self.c[2] * x[2] + self.c[3] * x[3]
+    }
+}
+
+/// Per-cell source terms, linear in the cell unknowns.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sources {
+    /// Vapour generation Γ_g (interface + wall), kg/m³/s.
+    gamma: Lin,
+    /// Gas energy source, W/m³.
+    s_g: Lin,
+    /// Liquid energy source, W/m³.
+    s_l: Lin,
+    /// Wall-to-fluid heat, W/m³.
+    q_wall: Lin,
+    /// Ambient-to-wall heat per fluid volume, W/m³.
+    q_amb: Lin,
+}
+
+/// Reusable work arrays of the scheme.
+#[derive(Debug, Clone, Default)]
+struct Work {
+    vt_g: Vec<f64>,
+    vt_l: Vec<f64>,
+    w_g: Vec<f64>,
+    w_l: Vec<f64>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
+    d: Vec<f64>,
+    s: Vec<f64>,
+    lower: Vec<Matrix2<f64>>,
+    diag: Vec<Matrix2<f64>>,
+    upper: Vec<Matrix2<f64>>,
+    rhs2: Vec<Vector2<f64>>,
+    scratch2: Vec<Matrix2<f64>>,
+    minv: Vec<Matrix4<f64>>,
+    r4: Vec<Vector4<f64>>,
+    cl: Vec<Vector4<f64>>,
+    cr: Vec<Vector4<f64>>,
+    sources: Vec<Sources>,
+    x: Vec<Vector4<f64>>,
+}
+
+/// The nearly-implicit scheme bound to a fluid, a grid and physics.
+#[derive(Debug, Clone)]
+pub struct Scheme<'a> {
+    /// Property table.
+    pub fluid: &'a FluidTable,
+    /// Geometry.
+    pub grid: Grid,
+    /// Switches and closure constants.
+    pub physics: Physics,
+    work: Work,
+}
+
+/// The donor (upwind) side of a junction for a given velocity.
+#[inline]
+fn upwind<T: Copy>(v: f64, left: T, right: T) -> T {
+    if v >= 0.0 { left } else { right }
+}
+
+impl<'a> Scheme<'a> {
+    /// A scheme for `grid` with the given fluid and physics.
+    pub fn new(fluid: &'a FluidTable, grid: Grid, physics: Physics) -> Self {
+        Self { fluid, grid, physics, work: Work::default() }
+    }
+
+    /// Advances `s` by `dt` with boundary states at the old (`b0`) and new (`b1`) time.
+    /// Returns the new state, or the reason the step must be retried with a smaller `dt`.
+    pub fn step(
+        &mut self,
+        s: &State,
+        dt: f64,
+        b0: [&BoundaryState; 2],
+        b1: [&BoundaryState; 2],
+    ) -> Result<(State, StepReport), Rejection> {
+        let n = self.grid.n;
+        let nj = n + 1;
+        let mut w = std::mem::take(&mut self.work);
+        resize(&mut w, n);
+        let result = self.step_inner(s, dt, b0, b1, &mut w, n, nj);
+        self.work = w;
+        result
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn step_inner(
+        &self,
+        s: &State,
+        dt: f64,
+        b0: [&BoundaryState; 2],
+        b1: [&BoundaryState; 2],
+        w: &mut Work,
+        n: usize,
+        nj: usize,
+    ) -> Result<(State, StepReport), Rejection> {
+        let g = &self.grid;
+        let ph = &self.physics;
+        let fluid = self.fluid;
+        let grav = if ph.gravity { GRAVITY } else { 0.0 };
+        let (inlet0, outlet0) = (b0[0], b0[1]);
+        let (inlet1, outlet1) = (b1[0], b1[1]);
+        let prescribed = |j: usize| -> Option<(f64, f64)> {
+            let b = if j == 0 {
+                Some(inlet1)
+            } else if j == n {
+                Some(outlet1)
+            } else {
+                None
+            }?;
+            match b.kind {
+                BoundaryKind::Velocity => Some((b.v_g, b.v_l)),
+                BoundaryKind::Closed => Some((0.0, 0.0)),
+                _ => None,
+            }
+        };
+
+        // ---- Step 1a: provisional velocities (block-tridiagonal, 2×2 blocks) ----
+        for j in 0..nj {
+            w.lower[j] = Matrix2::zeros();
+            w.upper[j] = Matrix2::zeros();
+            if let Some((vg, vl)) = prescribed(j) {
+                w.diag[j] = Matrix2::identity();
+                w.rhs2[j] = Vector2::new(vg, vl);
+                continue;
+            }
+            let jc = self.junction_coefficients(s, j, dt, inlet0, outlet0, grav);
+            let (vg, vl) = (s.v_g[j], s.v_l[j]);
+            let dxj = g.dx_junction(j);
+            let mut diag = Matrix2::new(
+                jc.ar_g / dt + jc.fric_g + jc.drag + jc.vm / dt,
+                -jc.drag - jc.vm / dt,
+                -jc.drag - jc.vm / dt,
+                jc.ar_l / dt + jc.fric_l + jc.drag + jc.vm / dt,
+            );
+            let mut rhs = Vector2::new(
+                jc.ar_g * vg / dt + jc.vm / dt * (vg - vl) - jc.a_g * jc.dp_old / dxj + jc.ar_g * jc.gx,
+                jc.ar_l * vl / dt - jc.vm / dt * (vg - vl) - jc.a_l * jc.dp_old / dxj + jc.ar_l * jc.gx,
+            );
+            // implicit donor-cell convection v^n (v_j − v_up)/dx
+            for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
+                let coef = ar * v.abs() / dxj;
+                diag[(k, k)] += coef;
+                if v >= 0.0 {
+                    if j > 0 {
+                        w.lower[j][(k, k)] -= coef;
+                    } else {
+                        // upstream of the inlet: the reservoir is at rest; other boundaries
+                        // carry the junction's own velocity (no convective acceleration)
+                        let v_up = match inlet0.kind {
+                            BoundaryKind::Reservoir => 0.0,
+                            _ => [vg, vl][k],
+                        };
+                        rhs[k] += coef * v_up;
+                    }
+                } else if j < n {
+                    w.upper[j][(k, k)] -= coef;
+                } else {
+                    let v_up = match outlet0.kind {
+                        BoundaryKind::Reservoir => 0.0,
+                        _ => [vg, vl][k],
+                    };
+                    rhs[k] += coef * v_up;
+                }
+            }
+            w.diag[j] = diag;
+            w.rhs2[j] = rhs;
+        }
+        // the pressure-correction weights use each junction's own block (before the solve
+        // overwrites the right-hand sides)
+        for j in 0..nj {
+            if prescribed(j).is_some() {
+                w.w_g[j] = 0.0;
+                w.w_l[j] = 0.0;
+                continue;
+            }
+            let (a_g, a_l) = self.junction_alpha(s, j, inlet0, outlet0);
+            let dxj = g.dx_junction(j);
+            let Some(inv) = w.diag[j].try_inverse() else {
+                return Err(Rejection { cell: j, variable: "momentum", value: dt, reason: "singular junction block" });
+            };
+            let wv = inv * Vector2::new(a_g / dxj, a_l / dxj);
+            w.w_g[j] = wv[0];
+            w.w_l[j] = wv[1];
+        }
+        if !linalg::block_tridiagonal(&w.lower, &w.diag, &w.upper, &mut w.rhs2, &mut w.scratch2) {
+            return Err(Rejection { cell: 0, variable: "velocity", value: dt, reason: "momentum system singular" });
+        }
+        for j in 0..nj {
+            w.vt_g[j] = w.rhs2[j][0];
+            w.vt_l[j] = w.rhs2[j][1];
+        }
+
+        // ---- Step 1c: per-cell 4×4 systems → tridiagonal pressure equation ----
+        let dp_in = inlet1.p - inlet0.p;
+        let dp_out = outlet1.p - outlet0.p;
+        for i in 0..n {
+            let v = g.volume[i];
+            let (gp, lp) = (&s.gas[i], &s.liquid[i]);
+            let a = s.alpha[i];
+            let b = 1.0 - a;
+            let src = self.sources(s, i, dt);
+            w.sources[i] = src;
+            let mut m = Matrix4::zeros();
+            let mut r = Vector4::zeros();
+            let mut cl = Vector4::zeros();
+            let mut cr = Vector4::zeros();
+            // storage terms
+            m[(0, 0)] = a * gp.drho_dp;
+            m[(0, 1)] = gp.rho;
+            m[(0, 2)] = a * gp.drho_dt;
+            m[(1, 0)] = b * lp.drho_dp;
+            m[(1, 1)] = -lp.rho;
+            m[(1, 3)] = b * lp.drho_dt;
+            m[(2, 0)] = a * (gp.u * gp.drho_dp + gp.rho * gp.du_dp);
+            m[(2, 1)] = gp.rho * gp.h;
+            m[(2, 2)] = a * (gp.u * gp.drho_dt + gp.rho * gp.du_dt);
+            m[(3, 0)] = b * (lp.u * lp.drho_dp + lp.rho * lp.du_dp);
+            m[(3, 1)] = -lp.rho * lp.h;
+            m[(3, 3)] = b * (lp.u * lp.drho_dt + lp.rho * lp.du_dt);
+            // old-time residuals (the volume-error correction)
+            r[0] = s.m_g[i] - a * gp.rho;
+            r[1] = s.m_l[i] - b * lp.rho;
+            r[2] = s.e_g[i] - a * gp.rho * gp.u;
+            r[3] = s.e_l[i] - b * lp.rho * lp.u;
+            // sources: row += −dt * source (moved to the left)
+            for (row, lin, sign) in [(0, src.gamma, 1.0), (1, src.gamma, -1.0), (2, src.s_g, 1.0), (3, src.s_l, 1.0)] {
+                r[row] += sign * dt * lin.c0;
+                for k in 0..4 {
+                    m[(row, k)] -= sign * dt * lin.c[k];
+                }
+            }
+            // fluxes through the left (j = i) and right (j = i + 1) junctions
+            for (j, side) in [(i, -1.0), (i + 1, 1.0)] {
+                let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
+                let f = dt * area / v;
+                let (ml, mr) = self.donor_pair(s, j, inlet0, outlet0);
+                for (k, (vt, wj)) in [(w.vt_g[j], w.w_g[j]), (w.vt_l[j], w.w_l[j])].into_iter().enumerate() {
+                    let d = upwind(vt, ml, mr);
+                    let (mass, energy, frac) = if k == 0 { (d.m_g, d.e_g, d.a_g) } else { (d.m_l, d.e_l, d.a_l) };
+                    let p_work = s.p[i];
+                    // rows: mass k, energy k (2 + k)
+                    for (row, q) in [(k, mass), (2 + k, energy + p_work * frac)] {
+                        // side * f * q * (vt + wj (δp_L − δp_R))
+                        r[row] -= side * f * q * vt;
+                        let c = side * f * q * wj;
+                        if side > 0.0 {
+                            // right junction: δp_L = δp_i, δp_R = δp_{i+1}
+                            m[(row, 0)] += c;
+                            cr[row] -= c;
+                        } else {
+                            // left junction: δp_L = δp_{i-1}, δp_R = δp_i
+                            m[(row, 0)] -= c;
+                            cl[row] += c;
+                        }
+                    }
+                }
+            }
+            let Some(minv) = m.try_inverse() else {
+                return Err(Rejection { cell: i, variable: "cell", value: a, reason: "singular cell system" });
+            };
+            w.minv[i] = minv;
+            w.r4[i] = r;
+            w.cl[i] = cl;
+            w.cr[i] = cr;
+            let sol_r = minv * r;
+            let sol_l = minv * cl;
+            let sol_rr = minv * cr;
+            w.a[i] = sol_l[0];
+            w.b[i] = 1.0;
+            w.c[i] = sol_rr[0];
+            w.d[i] = sol_r[0];
+        }
+        // boundary pressure changes are known
+        if !matches!(inlet1.kind, BoundaryKind::Velocity | BoundaryKind::Closed) {
+            w.d[0] -= w.a[0] * dp_in;
+        }
+        if !matches!(outlet1.kind, BoundaryKind::Velocity | BoundaryKind::Closed) {
+            w.d[n - 1] -= w.c[n - 1] * dp_out;
+        }
+        if !linalg::tridiagonal(&w.a, &w.b, &w.c, &mut w.d, &mut w.s) {
+            return Err(Rejection { cell: 0, variable: "pressure", value: dt, reason: "pressure system singular" });
+        }
+        let dp_at = |i: isize, d: &[f64]| -> f64 {
+            if i < 0 {
+                dp_in
+            } else if i as usize >= n {
+                dp_out
+            } else {
+                d[i as usize]
+            }
+        };
+        for i in 0..n {
+            let dpl = dp_at(i as isize - 1, &w.d);
+            let dpr = dp_at(i as isize + 1, &w.d);
+            w.x[i] = w.minv[i] * (w.r4[i] - w.cl[i] * dpl - w.cr[i] * dpr);
+        }
+        // new velocities
+        let mut next = s.clone();
+        let dps: Vec<f64> = w.x.iter().map(|x| x[0]).collect();
+        for j in 0..nj {
+            let dpl = dp_at(j as isize - 1, &dps);
+            let dpr = dp_at(j as isize, &dps);
+            next.v_g[j] = w.vt_g[j] + w.w_g[j] * (dpl - dpr);
+            next.v_l[j] = w.vt_l[j] + w.w_l[j] * (dpl - dpr);
+        }
+
+        // ---- Step 2: conservative mass and energy, new-time donors ----
+        let mut budget = StepBudget::default();
+        let alpha_prov: Vec<f64> = (0..n).map(|i| s.alpha[i] + w.x[i][1]).collect();
+        for phase in Phase::ALL {
+            let gas = phase == Phase::Gas;
+            let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
+            // matrix (same for mass and energy)
+            for i in 0..n {
+                let v = g.volume[i];
+                let (jl, jr) = (i, i + 1);
+                let al = g.area_junction[jl] * self.open_fraction(jl, inlet1, outlet1);
+                let ar = g.area_junction[jr] * self.open_fraction(jr, inlet1, outlet1);
+                let (vl, vr) = (vel[jl], vel[jr]);
+                w.b[i] = v + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
+                w.a[i] = -dt * vl.max(0.0) * al;
+                w.c[i] = dt * vr.min(0.0) * ar;
+            }
+            let bin = inlet1;
+            let bout = outlet1;
+            let (in_m, in_e, _) = boundary_conserved(bin, gas);
+            let (out_m, out_e, _) = boundary_conserved(bout, gas);
+            // mass
+            for i in 0..n {
+                let v = g.volume[i];
+                let old = if gas { s.m_g[i] } else { s.m_l[i] };
+                let gamma = w.sources[i].gamma.eval(&w.x[i]);
+                w.d[i] = v * old + v * dt * if gas { gamma } else { -gamma };
+            }
+            let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
+            let an = g.area_junction[n] * self.open_fraction(n, inlet1, outlet1);
+            if vel[0] > 0.0 {
+                w.d[0] += dt * vel[0] * a0 * in_m;
+            }
+            if vel[n] < 0.0 {
+                w.d[n - 1] -= dt * vel[n] * an * out_m;
+            }
+            if !linalg::tridiagonal(&w.a, &w.b, &w.c, &mut w.d, &mut w.s) {
+                return Err(Rejection { cell: 0, variable: "mass", value: dt, reason: "mass system singular" });
+            }
+            let masses = w.d.clone();
+            // boundary mass fluxes with the new donors
+            let flux_in = dt * vel[0] * a0 * if vel[0] > 0.0 { in_m } else { masses[0] };
+            let flux_out = dt * vel[n] * an * if vel[n] >= 0.0 { masses[n - 1] } else { out_m };
+            budget.mass_in += flux_in;
+            budget.mass_out += flux_out;
+            // energy
+            let mut pw_total = 0.0;
+            for i in 0..n {
+                let v = g.volume[i];
+                let old = if gas { s.e_g[i] } else { s.e_l[i] };
+                let src = if gas { w.sources[i].s_g } else { w.sources[i].s_l };
+                let dalpha = alpha_prov[i] - s.alpha[i];
+                let dvol = if gas { dalpha } else { -dalpha };
+                // p^n [V Δα_k + Δt Σ(α̂_k v A)] with old-time donor fractions
+                let frac_flux = |j: usize| -> f64 {
+                    let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
+                    let (l, r) = self.donor_pair(s, j, inlet0, outlet0);
+                    let d = upwind(vel[j], l, r);
+                    dt * vel[j] * area * if gas { d.a_g } else { d.a_l }
+                };
+                let pw = -s.p[i] * (v * dvol + frac_flux(i + 1) - frac_flux(i));
+                pw_total += pw;
+                w.d[i] = v * old + pw + v * dt * src.eval(&w.x[i]);
+            }
+            if vel[0] > 0.0 {
+                w.d[0] += dt * vel[0] * a0 * in_e;
+            }
+            if vel[n] < 0.0 {
+                w.d[n - 1] -= dt * vel[n] * an * out_e;
+            }
+            if !linalg::tridiagonal(&w.a, &w.b, &w.c, &mut w.d, &mut w.s) {
+                return Err(Rejection { cell: 0, variable: "energy", value: dt, reason: "energy system singular" });
+            }
+            let e_in = dt * vel[0] * a0 * if vel[0] > 0.0 { in_e } else { w.d[0] };
+            let e_out = dt * vel[n] * an * if vel[n] >= 0.0 { w.d[n - 1] } else { out_e };
+            budget.energy_flux += e_in - e_out;
+            budget.pressure_work += pw_total;
+            for i in 0..n {
+                if gas {
+                    next.m_g[i] = masses[i];
+                    next.e_g[i] = w.d[i];
+                } else {
+                    next.m_l[i] = masses[i];
+                    next.e_l[i] = w.d[i];
+                }
+            }
+        }
+
+        // wall energy and heat budgets
+        for i in 0..n {
+            let src = &w.sources[i];
+            let x = &w.x[i];
+            let v = g.volume[i];
+            let q_wall = src.q_wall.eval(x) * v * dt;
+            let q_amb = src.q_amb.eval(x) * v * dt;
+            budget.wall_heat += q_wall;
+            next.wall_heat_flux[i] = q_wall / (dt * g.perimeter * g.dx[i]);
+            budget.ambient_heat += q_amb;
+            next.e_w[i] = s.e_w[i] + (q_amb - q_wall) / g.wall_mass[i];
+            next.t_w[i] = g.material.temperature_from_energy(next.e_w[i]);
+        }
+
+        // ---- new thermodynamic state from the conserved variables ----
+        let mut max_verr: f64 = 0.0;
+        for i in 0..n {
+            let p = s.p[i] + w.x[i][0];
+            if !(p.is_finite() && p > 0.0) {
+                return Err(Rejection { cell: i, variable: "pressure", value: p, reason: "non-physical pressure" });
+            }
+            next.p[i] = p;
+            let total = next.m_g[i] + next.m_l[i];
+            for (gas, m) in [(true, next.m_g[i]), (false, next.m_l[i])] {
+                if !m.is_finite() || m < -1e-12 * total {
+                    return Err(Rejection {
+                        cell: i,
+                        variable: if gas { "gas mass" } else { "liquid mass" },
+                        value: m,
+                        reason: "negative phase mass",
+                    });
+                }
+            }
+            let tiny = 1e-14 * total.max(1e-30);
+            let (mg, ml) = (next.m_g[i].max(0.0), next.m_l[i].max(0.0));
+            next.m_g[i] = mg;
+            next.m_l[i] = ml;
+            // gas
+            let tg_guess = s.t_g[i] + w.x[i][2];
+            let tl_guess = s.t_l[i] + w.x[i][3];
+            let (tg, gp) = if mg > tiny {
+                let u = next.e_g[i] / mg;
+                self.fluid.temperature_from_energy(Phase::Gas, p, u, tg_guess).map_err(|_| Rejection {
+                    cell: i,
+                    variable: "gas temperature",
+                    value: u,
+                    reason: "gas energy outside the property table",
+                })?
+            } else {
+                // absent gas: it takes the liquid's temperature (within the gas table)
+                let t = clamp_to_phase(fluid, Phase::Gas, p, tl_guess);
+                let pr = fluid.phase_props(Phase::Gas, p, t).map_err(|_| Rejection {
+                    cell: i,
+                    variable: "gas temperature",
+                    value: t,
+                    reason: "outside the property table",
+                })?;
+                budget.adjustment += (mg * pr.u - next.e_g[i]) * g.volume[i];
+                next.e_g[i] = mg * pr.u;
+                (t, pr)
+            };
+            let (tl, lp) = if ml > tiny {
+                let u = next.e_l[i] / ml;
+                self.fluid.temperature_from_energy(Phase::Liquid, p, u, tl_guess).map_err(|_| Rejection {
+                    cell: i,
+                    variable: "liquid temperature",
+                    value: u,
+                    reason: "liquid energy outside the property table",
+                })?
+            } else {
+                let t = clamp_to_phase(fluid, Phase::Liquid, p, tg);
+                let pr = fluid.phase_props(Phase::Liquid, p, t).map_err(|_| Rejection {
+                    cell: i,
+                    variable: "liquid temperature",
+                    value: t,
+                    reason: "outside the property table",
+                })?;
+                budget.adjustment += (ml * pr.u - next.e_l[i]) * g.volume[i];
+                next.e_l[i] = ml * pr.u;
+                (t, pr)
+            };
+            let ag = mg / gp.rho;
+            let al = ml / lp.rho;
+            let verr = ag + al - 1.0;
+            max_verr = max_verr.max(verr.abs());
+            next.alpha[i] = ag / (ag + al);
+            next.t_g[i] = tg;
+            next.t_l[i] = tl;
+            next.gas[i] = gp;
+            next.liquid[i] = lp;
+            next.volume_error[i] = verr;
+        }
+        // total-energy boundary flux: enthalpy, kinetic and potential energy carried by the
+        // boundary mass fluxes (donor properties)
+        budget.total_energy_flux = self.total_energy_flux(&next, s, dt, inlet1, outlet1);
+        next.time = s.time + dt;
+
+        // ---- step control ----
+        let mut ratio: f64 = 0.0;
+        let mut worst = Rejection { cell: 0, variable: "", value: 0.0, reason: "" };
+        let mut check = |cell: usize, variable: &'static str, old: f64, new: f64, scale: f64| {
+            let r = (new - old).abs() / (MAX_RELATIVE_CHANGE * old.abs().max(scale));
+            if r.is_nan() || r > ratio {
+                ratio = if r.is_finite() { r } else { f64::INFINITY };
+                worst = Rejection { cell, variable, value: new, reason: "changed by more than 25 %" };
+            }
+        };
+        for i in 0..n {
+            check(i, "pressure", s.p[i], next.p[i], SCALE_PRESSURE_PA);
+            check(i, "void fraction", s.alpha[i], next.alpha[i], SCALE_VOID);
+            check(i, "gas temperature", s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K);
+            check(i, "liquid temperature", s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K);
+            check(i, "wall temperature", s.t_w[i], next.t_w[i], SCALE_TEMPERATURE_K);
+        }
+        for j in 0..nj {
+            check(j, "gas velocity", s.v_g[j], next.v_g[j], SCALE_VELOCITY_M_S);
+            check(j, "liquid velocity", s.v_l[j], next.v_l[j], SCALE_VELOCITY_M_S);
+        }
+        if ratio > 1.0 {
+            return Err(worst);
+        }
+        if max_verr > MAX_VOLUME_ERROR {
+            let i =
+                (0..n).max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs())).unwrap_or(0);
+            return Err(Rejection {
+                cell: i,
+                variable: "volume error",
+                value: next.volume_error[i],
+                reason: "phase volumes do not fill the cell",
+            });
+        }
+        Ok((next, StepReport { change_ratio: ratio, max_volume_error: max_verr, budget }))
+    }
+
+    fn open_fraction(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
+        if j == 0 {
+            inlet.open_fraction
+        } else if j == self.grid.n {
+            outlet.open_fraction
+        } else {
+            1.0
+        }
+    }
+
+    /// Donor quantities on the two sides of junction `j` (boundary states at the ends).
+    fn donor_pair(&self, s: &State, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> (Donor, Donor) {
+        let n = self.grid.n;
+        let cell = |i: usize| Donor {
+            m_g: s.m_g[i],
+            m_l: s.m_l[i],
+            e_g: s.e_g[i],
+            e_l: s.e_l[i],
+            a_g: s.alpha[i],
+            a_l: 1.0 - s.alpha[i],
+        };
+        let left = if j == 0 { Donor::from_boundary(inlet) } else { cell(j - 1) };
+        let right = if j == n { Donor::from_boundary(outlet) } else { cell(j) };
+        (left, right)
+    }
+
+    /// Junction phase fractions for the pressure-gradient term.
+    fn junction_alpha(&self, s: &State, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> (f64, f64) {
+        let a = self.junction_state(s, j, inlet, outlet).alpha;
+        (a, 1.0 - a)
+    }
+
+    fn junction_state(&self, s: &State, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> JunctionState {
+        let n = self.grid.n;
+        let cell = |i: usize| JunctionState {
+            alpha: s.alpha[i],
+            rho_g: s.gas[i].rho,
+            rho_l: s.liquid[i].rho,
+            mu_g: s.gas[i].mu,
+            mu_l: s.liquid[i].mu,
+        };
+        let bnd = |b: &BoundaryState| JunctionState {
+            alpha: b.alpha,
+            rho_g: b.gas.rho,
+            rho_l: b.liquid.rho,
+            mu_g: b.gas.mu,
+            mu_l: b.liquid.mu,
+        };
+        if j > 0 && j < n {
+            let (l, r) = (cell(j - 1), cell(j));
+            let (wl, wr) = (self.grid.dx[j - 1], self.grid.dx[j]);
+            let f = wl / (wl + wr);
+            return JunctionState {
+                alpha: f * l.alpha + (1.0 - f) * r.alpha,
+                rho_g: f * l.rho_g + (1.0 - f) * r.rho_g,
+                rho_l: f * l.rho_l + (1.0 - f) * r.rho_l,
+                mu_g: f * l.mu_g + (1.0 - f) * r.mu_g,
+                mu_l: f * l.mu_l + (1.0 - f) * r.mu_l,
+            };
+        }
+        // boundary junction: the donor side by the mixture velocity, or by the pressure
+        // difference when the fluid is at rest
+        let (b, c, inflow_sign) = if j == 0 { (inlet, cell(0), 1.0) } else { (outlet, cell(n - 1), -1.0) };
+        let vm = s.alpha[if j == 0 { 0 } else { n - 1 }] * s.v_g[j]
+            + (1.0 - s.alpha[if j == 0 { 0 } else { n - 1 }]) * s.v_l[j];
+        let p_cell = s.p[if j == 0 { 0 } else { n - 1 }];
+        let inflow = if vm.abs() > 1e-9 {
+            inflow_sign * vm > 0.0
+        } else {
+            inflow_sign * (if j == 0 { b.p - p_cell } else { p_cell - b.p }) > 0.0
+        };
+        if inflow && !matches!(b.kind, BoundaryKind::Closed) { bnd(b) } else { c }
+    }
+
+    fn junction_coefficients(
+        &self,
+        s: &State,
+        j: usize,
+        dt: f64,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+        grav: f64,
+    ) -> JunctionCoefficients {
+        let g = &self.grid;
+        let ph = &self.physics;
+        let n = g.n;
+        let js = self.junction_state(s, j, inlet, outlet);
+        let (a_g, a_l) = (js.alpha, 1.0 - js.alpha);
+        let ar_g = a_g * js.rho_g;
+        let ar_l = a_l * js.rho_l;
+        let (vg, vl) = (s.v_g[j], s.v_l[j]);
+        let d = g.d_h;
+        let fric = |a: f64, rho: f64, mu: f64, v: f64| -> f64 {
+            if !ph.wall_friction || a <= 0.0 {
+                return 0.0;
+            }
+            let re = rho * v.abs() * d / mu.max(1e-12);
+            let f = churchill_darcy(re, g.relative_roughness);
+            a * f * rho * v.abs() / (2.0 * d)
+        };
+        let mut fric_g = fric(a_g, js.rho_g, js.mu_g, vg);
+        let mut fric_l = fric(a_l, js.rho_l, js.mu_l, vl);
+        // form loss (valve / entrance) at a boundary junction: K ρ |v| / (2 dx), the valve
+        // closing the area scales K with 1/open²
+        let bnd = if j == 0 {
+            Some(inlet)
+        } else if j == n {
+            Some(outlet)
+        } else {
+            None
+        };
+        let dxj = g.dx_junction(j);
+        if let Some(b) = bnd {
+            let open = b.open_fraction.max(1e-6);
+            let k = b.loss / (open * open) + if open < 1.0 { (1.0 / open - 1.0).powi(2) } else { 0.0 };
+            fric_g += k * ar_g * vg.abs() / (2.0 * dxj);
+            fric_l += k * ar_l * vl.abs() / (2.0 * dxj);
+        }
+        let rho_m = a_g * js.rho_g + a_l * js.rho_l;
+        let vr = (vg - vl).abs();
+        let mut drag = if ph.interphase_drag { ph.drag_coefficient * a_g * a_l * rho_m * vr / d } else { 0.0 };
+        // a disappearing phase is tied to the continuous one (phase blending, paper eq. smoother)
+        let pres = presence(a_g.min(a_l), ph.blend_min, ph.blend_max);
+        drag += (1.0 - pres) * 1e3 * rho_m / dt;
+        let vm = if ph.virtual_mass { ph.virtual_mass_coefficient * a_g * a_l * rho_m } else { 0.0 };
+        let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
+        JunctionCoefficients {
+            a_g,
+            a_l,
+            ar_g: ar_g.max(1e-9 * rho_m),
+            ar_l: ar_l.max(1e-9 * rho_m),
+            fric_g,
+            fric_l,
+            drag,
+            vm,
+            dp_old: p_r - p_l,
+            gx: -grav * g.sin_junction[j],
+        }
+    }
+
+    /// Linearised sources of cell `i` (interphase and wall heat and mass transfer, wall
+    /// temperature eliminated implicitly).
+    fn sources(&self, s: &State, i: usize, dt: f64) -> Sources {
+        let g = &self.grid;
+        let ph = &self.physics;
+        let (gp, lp) = (&s.gas[i], &s.liquid[i]);
+        let a = s.alpha[i];
+        let b = 1.0 - a;
+        let v = g.volume[i];
+        let pres_g = presence(a, ph.blend_min, ph.blend_max);
+        let pres_l = presence(b, ph.blend_min, ph.blend_max);
+        let gas_here = s.m_g[i] > 0.0;
+        let liq_here = s.m_l[i] > 0.0;
+        let tg = Lin::var(s.t_g[i], 2);
+        let tl = Lin::var(s.t_l[i], 3);
+        // wall heat transfer coefficients per unit fluid volume
+        let per_vol = g.perimeter / g.area_cell[i];
+        let (hw_g, hw_l) = if ph.wall_heat_transfer {
+            match ph.fixed_wall_htc {
+                Some(h) => (h * per_vol * a, h * per_vol * b),
+                None => {
+                    let d = g.d_h;
+                    let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
+                    let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
+                    let h = |pr: &PhaseProps, v: f64| {
+                        let re = pr.rho * v.abs() * d / pr.mu;
+                        forced_convection_htc(re, pr.mu * pr.cp / pr.k, pr.k, d)
+                    };
+                    (h(gp, vg) * per_vol * a, h(lp, vl) * per_vol * b)
+                }
+            }
+        } else {
+            (0.0, 0.0)
+        };
+        let hw_g = if gas_here { hw_g } else { 0.0 };
+        let hw_l = if liq_here { hw_l } else { 0.0 };
+        let h_amb = ph.ambient_htc_w_m2k * g.outer_area[i] / v;
+        let c_w = g.wall_mass[i] * g.material.specific_heat_j_kg_k(s.t_w[i]) / v;
+        let tw = s.t_w[i];
+        let den = c_w / dt + hw_g + hw_l + h_amb;
+        let a0 = (-hw_g * (tw - s.t_g[i]) - hw_l * (tw - s.t_l[i]) + h_amb * (ph.ambient_temperature_k - tw)) / den;
+        let t_w_new = Lin { c0: tw + a0, c: [0.0, 0.0, hw_g / den, hw_l / den] };
+        let q_wg = t_w_new.sub(tg).scale(hw_g);
+        let q_wl = t_w_new.sub(tl).scale(hw_l);
+        let q_amb = Lin::constant(h_amb * ph.ambient_temperature_k).sub(t_w_new.scale(h_amb));
+        let q_wall = q_wg.add(q_wl);
+
+        let mut s_g = q_wg;
+        let mut s_l = q_wl;
+        let mut gamma = Lin::default();
+        // interphase heat exchange (and phase-blending exchange for a vanishing phase)
+        let h_exchange = if ph.interphase_heat_transfer { ph.interphase_htc_w_m3k * a * b } else { 0.0 };
+        let blend = |pres: f64, m: f64, cp: f64| (1.0 - pres) * m.max(0.0) * cp / dt;
+        let h_blend = blend(pres_g, s.m_g[i], gp.cp) + blend(pres_l, s.m_l[i], lp.cp);
+        let sat = if ph.phase_change { self.fluid.saturation(s.p[i]).ok() } else { None };
+        match sat {
+            Some(sat) if gas_here && liq_here => {
+                // mass transfer at the interface: Γ_ig = −(q_ig + q_il)/(h*_g − h*_l)
+                let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
+                let h_ig = h_exchange + blend(pres_g, s.m_g[i], gp.cp);
+                let h_il = h_exchange + blend(pres_l, s.m_l[i], lp.cp);
+                let q_ig = ts.sub(tg).scale(h_ig);
+                let q_il = ts.sub(tl).scale(h_il);
+                let q_sum = q_ig.add(q_il).c0;
+                // RELAP5's switch: vapour forms at saturation from liquid at its own enthalpy,
+                // condenses from vapour at its own enthalpy into saturated liquid
+                let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };
+                let dh = (hg_star - hl_star).max(1e-3 * sat.h_lg);
+                let g_ig = q_ig.add(q_il).scale(-1.0 / dh);
+                s_g = s_g.add(q_ig).add(g_ig.scale(hg_star));
+                s_l = s_l.add(q_il).sub(g_ig.scale(hl_star));
+                gamma = g_ig;
+            }
+            _ => {
+                let q = tl.sub(tg).scale(h_exchange + h_blend);
+                s_g = s_g.add(q);
+                s_l = s_l.sub(q);
+            }
+        }
+        Sources { gamma, s_g, s_l, q_wall, q_amb }
+    }
+
+    fn total_energy_flux(
+        &self,
+        next: &State,
+        old: &State,
+        dt: f64,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+    ) -> f64 {
+        let g = &self.grid;
+        let n = g.n;
+        let z_in = 0.0;
+        let z_out: f64 = (0..n).map(|i| g.dx[i] * g.sin_cell[i]).sum();
+        let grav = if self.physics.gravity { GRAVITY } else { 0.0 };
+        let mut total = 0.0;
+        for (j, b, z, sign) in [(0usize, inlet, z_in, 1.0), (n, outlet, z_out, -1.0)] {
+            let area = g.area_junction[j] * b.open_fraction;
+            for gas in [true, false] {
+                let v = if gas { next.v_g[j] } else { next.v_l[j] };
+                let inflow = sign * v > 0.0;
+                let c = if j == 0 { 0 } else { n - 1 };
+                let (m, h) = if inflow {
+                    let (m, _, _) = boundary_conserved(b, gas);
+                    (m, if gas { b.gas.h } else { b.liquid.h })
+                } else if gas {
+                    (next.m_g[c], old.gas[c].h)
+                } else {
+                    (next.m_l[c], old.liquid[c].h)
+                };
+                total += sign * dt * v * area * m * (h + 0.5 * v * v + grav * z);
+            }
+        }
+        total
+    }
+}
+
+/// Conserved quantities per unit volume of the fluid entering through a boundary:
+/// (mass, internal energy, phase fraction) of the gas or the liquid.
+fn boundary_conserved(b: &BoundaryState, gas: bool) -> (f64, f64, f64) {
+    if gas {
+        (b.alpha * b.gas.rho, b.alpha * b.gas.rho * b.gas.u, b.alpha)
+    } else {
+        let a = 1.0 - b.alpha;
+        (a * b.liquid.rho, a * b.liquid.rho * b.liquid.u, a)
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Donor {
+    m_g: f64,
+    m_l: f64,
+    e_g: f64,
+    e_l: f64,
+    a_g: f64,
+    a_l: f64,
+}
+
+impl Donor {
+    fn from_boundary(b: &BoundaryState) -> Self {
+        let (m_g, e_g, a_g) = boundary_conserved(b, true);
+        let (m_l, e_l, a_l) = boundary_conserved(b, false);
+        Self { m_g, m_l, e_g, e_l, a_g, a_l }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct JunctionState {
+    alpha: f64,
+    rho_g: f64,
+    rho_l: f64,
+    mu_g: f64,
+    mu_l: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct JunctionCoefficients {
+    a_g: f64,
+    a_l: f64,
+    ar_g: f64,
+    ar_l: f64,
+    fric_g: f64,
+    fric_l: f64,
+    drag: f64,
+    vm: f64,
+    dp_old: f64,
+    gx: f64,
+}
+
+fn resize(w: &mut Work, n: usize) {
+    let nj = n + 1;
+    let m = nj.max(n);
+    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l] {
+        v.resize(nj, 0.0);
+    }
+    for v in [&mut w.a, &mut w.b, &mut w.c, &mut w.d, &mut w.s] {
+        v.resize(n, 0.0);
+    }
+    w.lower.resize(m, Matrix2::zeros());
+    w.diag.resize(m, Matrix2::zeros());
+    w.upper.resize(m, Matrix2::zeros());
+    w.rhs2.resize(m, Vector2::zeros());
+    w.scratch2.resize(m, Matrix2::zeros());
+    w.minv.resize(n, Matrix4::zeros());
+    w.r4.resize(n, Vector4::zeros());
+    w.cl.resize(n, Vector4::zeros());
+    w.cr.resize(n, Vector4::zeros());
+    w.sources.resize(n, Sources::default());
+    w.x.resize(n, Vector4::zeros());
+}
