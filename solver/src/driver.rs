@@ -8,6 +8,7 @@ use serde::Serialize;
 use crate::case::{BoundaryKind, Case};
 use crate::fluids::{FluidError, FluidTable, Phase};
 use crate::model::{BoundaryState, GRAVITY, Grid, State, boundary_state, clamp_to_phase};
+use crate::params::ParameterSet;
 use crate::scheme::{Physics, Rejection, Scheme, StepBudget};
 
 /// Why a run ended without reaching its end time.
@@ -51,6 +52,9 @@ pub enum SimError {
     /// A property query failed while setting up.
     #[error("{0}")]
     Fluid(#[from] FluidError),
+    /// A parameter name or value is not acceptable.
+    #[error("{0}")]
+    Parameter(String),
     /// The initial state cannot be built.
     #[error("initial state: {0}")]
     Initial(String),
@@ -139,10 +143,16 @@ pub struct Progress {
     pub steps: u64,
 }
 
-/// Physics settings of a case.
-pub fn physics_of(case: &Case) -> Physics {
+/// Physics settings of a case with the given parameter values (already merged with the case's
+/// `[parameters]` by the caller, see [`case_parameters`]).
+pub fn physics_of(case: &Case, params: &ParameterSet) -> Physics {
     let p = &case.physics;
     Physics {
+        virtual_mass_coefficient: params.get("vm_coeff"),
+        drag_coefficient: params.get("drag_coeff"),
+        interphase_htc_w_m3k: params.get("hi_vol"),
+        blend_min: params.get("blend_xmin"),
+        blend_max: params.get("blend_xmax"),
         phase_change: p.phase_change,
         wall_heat_transfer: p.wall_heat_transfer,
         interphase_heat_transfer: p.interphase_heat_transfer,
@@ -153,8 +163,16 @@ pub fn physics_of(case: &Case) -> Physics {
         fixed_wall_htc: p.wall_htc_w_m2k,
         ambient_temperature_k: case.ambient.temperature_k,
         ambient_htc_w_m2k: case.ambient.heat_transfer_coefficient_w_m2k,
-        ..Physics::default()
     }
+}
+
+/// The case's `[parameters]` as a checked parameter set (errors name the case's field).
+pub fn case_parameters(case: &Case) -> Result<ParameterSet, SimError> {
+    let mut set = ParameterSet::new();
+    for (name, value) in &case.parameters {
+        set.set(name, *value).map_err(|e| SimError::Parameter(format!("parameters.{name}: {e}")))?;
+    }
+    Ok(set)
 }
 
 /// The state at t = 0 from the case's `[initial]` section.
@@ -222,11 +240,16 @@ pub fn fluid_temperature(alpha: f64, t_g: f64, t_l: f64) -> f64 {
     (1.0 - alpha) * t_l + alpha * t_g
 }
 
-/// Runs a case to its end time.
-pub fn run(case: &Case, fluid: &FluidTable, progress: &mut dyn FnMut(Progress)) -> Result<Output, SimError> {
+/// Runs a case to its end time with parameter values `params` (defaults for the rest).
+pub fn run(
+    case: &Case,
+    fluid: &FluidTable,
+    params: &ParameterSet,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Output, SimError> {
     let grid = Grid::from_case(case);
     let state = initial_state(case, fluid, &grid)?;
-    let physics = physics_of(case);
+    let physics = physics_of(case, params);
     let mut scheme = Scheme::new(fluid, grid.clone(), physics);
     let t = &case.time;
     let n = grid.n;
@@ -257,6 +280,7 @@ pub fn run(case: &Case, fluid: &FluidTable, progress: &mut dyn FnMut(Progress)) 
     let m0 = total_mass(&s, &grid);
     let e0_scheme = fluid_internal_energy(&s, &grid);
     let e0_total = total_energy(&s, &grid, case.physics.gravity);
+    let e0_parts = energy_parts(&s, &grid, case.physics.gravity);
     let end = t.end_s;
     let eps = 1e-9 * end;
     let mut easy_steps = 0u32;
@@ -320,10 +344,15 @@ pub fn run(case: &Case, fluid: &FluidTable, progress: &mut dyn FnMut(Progress)) 
                     } else {
                         easy_steps = 0;
                     }
-                    // grow when several steps in a row were easy; keep the step otherwise
-                    dt = if easy_steps >= 3 { (h * 1.25).max(dt) } else { h.max(dt.min(h * 1.25)) };
+                    // `dt` is the controller's step; `h` may have been shortened to land on an
+                    // output time or by the Courant limit, which says nothing about difficulty.
+                    // Grow after three easy steps in a row, shrink after a hard one.
+                    if easy_steps >= 3 {
+                        dt = (dt * 1.25).min(t.max_dt_s);
+                        easy_steps = 0;
+                    }
                     if report.change_ratio > 0.8 {
-                        dt = h * 0.8;
+                        dt = dt.min(h * 0.8);
                     }
                     s = next;
                     break;
@@ -360,8 +389,15 @@ pub fn run(case: &Case, fluid: &FluidTable, progress: &mut dyn FnMut(Progress)) 
     let scheme_energy_error = (e1_scheme - e0_scheme - scheme_terms).abs() / scheme_scale;
     let e1_total = total_energy(&s, &grid, case.physics.gravity);
     let phys_terms = cum.total_energy_flux + cum.ambient_heat;
-    let phys_scale =
-        cum.total_energy_flux.abs() + cum.ambient_heat.abs() + cum.wall_heat.abs() + (e1_total - e0_total).abs();
+    // scale: everything that moved — boundary fluxes, heat, and the change of each energy form
+    let (ke0, pe0) = e0_parts;
+    let (ke1, pe1) = energy_parts(&s, &grid, case.physics.gravity);
+    let phys_scale = cum.total_energy_flux.abs()
+        + cum.ambient_heat.abs()
+        + cum.wall_heat.abs()
+        + (e1_scheme - e0_scheme).abs()
+        + (ke1 - ke0).abs()
+        + (pe1 - pe0).abs();
     let energy_balance_error =
         if phys_scale > 0.0 { (e1_total - e0_total - phys_terms).abs() / phys_scale } else { 0.0 };
     Ok(Output {
@@ -411,6 +447,21 @@ pub fn total_mass(s: &State, g: &Grid) -> f64 {
 
 fn fluid_internal_energy(s: &State, g: &Grid) -> f64 {
     (0..g.n).map(|i| (s.e_g[i] + s.e_l[i]) * g.volume[i]).sum()
+}
+
+/// (kinetic, potential) energy of the fluid, J.
+fn energy_parts(s: &State, g: &Grid, gravity: bool) -> (f64, f64) {
+    let grav = if gravity { GRAVITY } else { 0.0 };
+    let (mut z, mut ke, mut pe) = (0.0, 0.0, 0.0);
+    for i in 0..g.n {
+        let zc = z + 0.5 * g.dx[i] * g.sin_cell[i];
+        z += g.dx[i] * g.sin_cell[i];
+        let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
+        let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
+        ke += g.volume[i] * 0.5 * (s.m_g[i] * vg * vg + s.m_l[i] * vl * vl);
+        pe += g.volume[i] * (s.m_g[i] + s.m_l[i]) * grav * zc;
+    }
+    (ke, pe)
 }
 
 /// Fluid internal + kinetic + potential energy plus wall internal energy, J.

@@ -14,4 +14,6 @@ pub mod fluids;
 pub mod linalg;
 pub mod materials;
 pub mod model;
+pub mod params;
+pub mod reference;
 pub mod scheme;

@@ -154,6 +154,16 @@ pub const SCALE_VOID: f64 = 0.2;
 pub const SCALE_TEMPERATURE_K: f64 = 20.0;
 /// Velocity scale, m/s.
 pub const SCALE_VELOCITY_M_S: f64 = 2.0;
+/// Relaxation time with which a disappearing phase is pulled to the velocity and temperature of
+/// the continuous one, s. A time constant rather than a multiple of 1/Δt, so that the pull does
+/// not change abruptly with the step size (the step control measures changes per step).
+pub const BLEND_RELAXATION_S: f64 = 1e-3;
+/// Volume fraction below which a phase whose energy has left its property table is reset to
+/// the other phase's temperature (see the state recovery in [`Scheme::step`]).
+pub const TRACE_RESET_FRACTION: f64 = 0.1;
+/// Largest pressure correction (as a fraction of the pressure) that a volume error left by a
+/// step may imply for the next one.
+pub const VOLUME_ERROR_PRESSURE_FRACTION: f64 = 0.02;
 /// Largest volume error accepted after a step.
 pub const MAX_VOLUME_ERROR: f64 = 2e-3;
 
@@ -314,7 +324,7 @@ impl<'a> Scheme<'a> {
                 w.rhs2[j] = Vector2::new(vg, vl);
                 continue;
             }
-            let jc = self.junction_coefficients(s, j, dt, inlet0, outlet0, grav);
+            let jc = self.junction_coefficients(s, j, inlet0, outlet0, grav);
             let (vg, vl) = (s.v_g[j], s.v_l[j]);
             let dxj = g.dx_junction(j);
             let mut diag = Matrix2::new(
@@ -446,6 +456,22 @@ impl<'a> Scheme<'a> {
                     }
                 }
             }
+            // An absent phase has no energy equation: its temperature follows the other phase
+            // (within its own table), so that it enters well defined if it flows in.
+            for (present, row, col, target) in [
+                (s.m_g[i] > 0.0, 2usize, 2usize, clamp_to_phase(fluid, Phase::Gas, s.p[i], s.t_l[i]) - s.t_g[i]),
+                (s.m_l[i] > 0.0, 3, 3, clamp_to_phase(fluid, Phase::Liquid, s.p[i], s.t_g[i]) - s.t_l[i]),
+            ] {
+                if !present {
+                    for k in 0..4 {
+                        m[(row, k)] = 0.0;
+                    }
+                    m[(row, col)] = 1.0;
+                    r[row] = target;
+                    cl[row] = 0.0;
+                    cr[row] = 0.0;
+                }
+            }
             let Some(minv) = m.try_inverse() else {
                 return Err(Rejection { cell: i, variable: "cell", value: a, reason: "singular cell system" });
             };
@@ -497,7 +523,6 @@ impl<'a> Scheme<'a> {
 
         // ---- Step 2: conservative mass and energy, new-time donors ----
         let mut budget = StepBudget::default();
-        let alpha_prov: Vec<f64> = (0..n).map(|i| s.alpha[i] + w.x[i][1]).collect();
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
             let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
@@ -546,8 +571,16 @@ impl<'a> Scheme<'a> {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
                 let src = if gas { w.sources[i].s_g } else { w.sources[i].s_l };
-                let dalpha = alpha_prov[i] - s.alpha[i];
-                let dvol = if gas { dalpha } else { -dalpha };
+                // The phase's volume change: its new mass (just solved) at the provisional
+                // density, so that the p dV work matches the mass that actually moved (the
+                // step-1 void fraction alone can disagree for a phase that is nearly gone).
+                let x = &w.x[i];
+                let (rho_new, old_frac) = if gas {
+                    (s.gas[i].rho + s.gas[i].drho_dp * x[0] + s.gas[i].drho_dt * x[2], s.alpha[i])
+                } else {
+                    (s.liquid[i].rho + s.liquid[i].drho_dp * x[0] + s.liquid[i].drho_dt * x[3], 1.0 - s.alpha[i])
+                };
+                let dvol = masses[i] / rho_new.max(1e-12) - old_frac;
                 // p^n [V Δα_k + Δt Σ(α̂_k v A)] with old-time donor fractions
                 let frac_flux = |j: usize| -> f64 {
                     let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
@@ -599,6 +632,7 @@ impl<'a> Scheme<'a> {
 
         // ---- new thermodynamic state from the conserved variables ----
         let mut max_verr: f64 = 0.0;
+        let mut reset_cells = vec![false; n];
         for i in 0..n {
             let p = s.p[i] + w.x[i][0];
             if !(p.is_finite() && p > 0.0) {
@@ -623,47 +657,63 @@ impl<'a> Scheme<'a> {
             // gas
             let tg_guess = s.t_g[i] + w.x[i][2];
             let tl_guess = s.t_l[i] + w.x[i][3];
-            let (tg, gp) = if mg > tiny {
-                let u = next.e_g[i] / mg;
-                self.fluid.temperature_from_energy(Phase::Gas, p, u, tg_guess).map_err(|_| Rejection {
-                    cell: i,
-                    variable: "gas temperature",
-                    value: u,
-                    reason: "gas energy outside the property table",
-                })?
-            } else {
-                // absent gas: it takes the liquid's temperature (within the gas table)
-                let t = clamp_to_phase(fluid, Phase::Gas, p, tl_guess);
-                let pr = fluid.phase_props(Phase::Gas, p, t).map_err(|_| Rejection {
-                    cell: i,
-                    variable: "gas temperature",
-                    value: t,
-                    reason: "outside the property table",
-                })?;
-                budget.adjustment += (mg * pr.u - next.e_g[i]) * g.volume[i];
-                next.e_g[i] = mg * pr.u;
-                (t, pr)
+            // A phase present in more than a trace keeps the temperature its conserved energy
+            // gives. A trace (volume fraction below blend_min, or below TRACE_RESET_FRACTION
+            // when its energy has left the table) takes the other phase's temperature, moved
+            // into its own table: its energy per unit mass is ill-conditioned (tiny mass, finite
+            // pressure work, compression by liquid hammer), and the reset moves at most a trace
+            // of energy, booked as an adjustment in the budget.
+            let recover = |phase: Phase, m: f64, e: f64, guess: f64, other_t: f64, budget: &mut StepBudget| {
+                let (name, what) = match phase {
+                    Phase::Gas => ("gas temperature", "gas energy outside the property table"),
+                    Phase::Liquid => ("liquid temperature", "liquid energy outside the property table"),
+                };
+                let target = clamp_to_phase(fluid, phase, p, other_t);
+                let reset = |budget: &mut StepBudget| -> Result<(f64, PhaseProps, f64, bool), Rejection> {
+                    let pr = fluid.phase_props(phase, p, target).map_err(|_| Rejection {
+                        cell: i,
+                        variable: name,
+                        value: target,
+                        reason: "outside the property table",
+                    })?;
+                    budget.adjustment += (m * pr.u - e) * g.volume[i];
+                    Ok((target, pr, m * pr.u, true))
+                };
+                if m <= tiny {
+                    return reset(budget);
+                }
+                let trace_frac = m / fluid.phase_props(phase, p, target).map(|pr| pr.rho).unwrap_or(f64::INFINITY);
+                if trace_frac < ph.blend_min {
+                    return reset(budget);
+                }
+                match fluid.temperature_from_energy(phase, p, e / m, guess) {
+                    Ok((t, pr)) => Ok((t, pr, e, false)),
+                    Err(_) if trace_frac < ph.blend_max.max(TRACE_RESET_FRACTION) => {
+                        // the nearest temperature the table holds, which changes the trace's
+                        // density (and so the cell's volume balance) least
+                        let Some((lo, hi)) = fluid.phase_temperature_range(phase, p) else {
+                            return reset(budget);
+                        };
+                        let u_lo = fluid.phase_props(phase, p, lo).map(|pr| pr.u).unwrap_or(f64::NAN);
+                        let margin = 1e-6 * (hi - lo);
+                        let t = if e / m <= u_lo { lo + margin } else { hi - margin };
+                        let pr = fluid.phase_props(phase, p, t).map_err(|_| Rejection {
+                            cell: i,
+                            variable: name,
+                            value: t,
+                            reason: "outside the property table",
+                        })?;
+                        budget.adjustment += (m * pr.u - e) * g.volume[i];
+                        Ok((t, pr, m * pr.u, true))
+                    }
+                    Err(_) => Err(Rejection { cell: i, variable: name, value: e / m, reason: what }),
+                }
             };
-            let (tl, lp) = if ml > tiny {
-                let u = next.e_l[i] / ml;
-                self.fluid.temperature_from_energy(Phase::Liquid, p, u, tl_guess).map_err(|_| Rejection {
-                    cell: i,
-                    variable: "liquid temperature",
-                    value: u,
-                    reason: "liquid energy outside the property table",
-                })?
-            } else {
-                let t = clamp_to_phase(fluid, Phase::Liquid, p, tg);
-                let pr = fluid.phase_props(Phase::Liquid, p, t).map_err(|_| Rejection {
-                    cell: i,
-                    variable: "liquid temperature",
-                    value: t,
-                    reason: "outside the property table",
-                })?;
-                budget.adjustment += (ml * pr.u - next.e_l[i]) * g.volume[i];
-                next.e_l[i] = ml * pr.u;
-                (t, pr)
-            };
+            let (tg, gp, eg, reset_g) = recover(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, &mut budget)?;
+            let (tl, lp, el, reset_l) = recover(Phase::Liquid, ml, next.e_l[i], tl_guess, tg, &mut budget)?;
+            reset_cells[i] = reset_g || reset_l;
+            next.e_g[i] = eg;
+            next.e_l[i] = el;
             let ag = mg / gp.rho;
             let al = ml / lp.rho;
             let verr = ag + al - 1.0;
@@ -690,23 +740,49 @@ impl<'a> Scheme<'a> {
                 worst = Rejection { cell, variable, value: new, reason: "changed by more than 25 %" };
             }
         };
+        // a phase's temperature and velocity are controlled only where it is present
+        let xmax = ph.blend_max;
         for i in 0..n {
             check(i, "pressure", s.p[i], next.p[i], SCALE_PRESSURE_PA);
             check(i, "void fraction", s.alpha[i], next.alpha[i], SCALE_VOID);
-            check(i, "gas temperature", s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K);
-            check(i, "liquid temperature", s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K);
+            if s.alpha[i].min(next.alpha[i]) > xmax {
+                check(i, "gas temperature", s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K);
+            }
+            if (1.0 - s.alpha[i]).min(1.0 - next.alpha[i]) > xmax {
+                check(i, "liquid temperature", s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K);
+            }
             check(i, "wall temperature", s.t_w[i], next.t_w[i], SCALE_TEMPERATURE_K);
         }
         for j in 0..nj {
-            check(j, "gas velocity", s.v_g[j], next.v_g[j], SCALE_VELOCITY_M_S);
-            check(j, "liquid velocity", s.v_l[j], next.v_l[j], SCALE_VELOCITY_M_S);
+            let (fg, fl) = self.junction_min_fractions(s, j);
+            if fg > xmax {
+                check(j, "gas velocity", s.v_g[j], next.v_g[j], SCALE_VELOCITY_M_S);
+            }
+            if fl > xmax {
+                check(j, "liquid velocity", s.v_l[j], next.v_l[j], SCALE_VELOCITY_M_S);
+            }
         }
         if ratio > 1.0 {
             return Err(worst);
         }
-        if max_verr > MAX_VOLUME_ERROR {
-            let i =
-                (0..n).max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs())).unwrap_or(0);
+        // reject a step that leaves a cell with a volume error above the limit and larger
+        // than it had (an error inherited from earlier steps shrinks under the next pressure
+        // solves; a smaller step cannot remove it)
+        // (nor one that a trace reset made: the reset is not a function of the step size)
+        // In a cell full of liquid even a small volume error is a large pressure correction in
+        // the next step (liquid is stiff): the error is also limited by the pressure change it
+        // implies, |e| / κ with κ the cell's volume compressibility.
+        let too_big = |i: usize| {
+            let (gp, lp, a) = (&next.gas[i], &next.liquid[i], next.alpha[i]);
+            let kappa = a * gp.drho_dp / gp.rho + (1.0 - a) * lp.drho_dp / lp.rho;
+            let e = next.volume_error[i].abs();
+            e > MAX_VOLUME_ERROR || e > VOLUME_ERROR_PRESSURE_FRACTION * next.p[i].max(SCALE_PRESSURE_PA) * kappa
+        };
+        let grew = |i: usize| !reset_cells[i] && too_big(i) && next.volume_error[i].abs() > s.volume_error[i].abs();
+        if let Some(i) = (0..n)
+            .filter(|&i| grew(i))
+            .max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs()))
+        {
             return Err(Rejection {
                 cell: i,
                 variable: "volume error",
@@ -791,11 +867,25 @@ impl<'a> Scheme<'a> {
         if inflow && !matches!(b.kind, BoundaryKind::Closed) { bnd(b) } else { c }
     }
 
+    /// Smallest gas and liquid fraction of the two cells (or boundary states) at junction `j`.
+    fn junction_min_fractions(&self, s: &State, j: usize) -> (f64, f64) {
+        let n = self.grid.n;
+        let l = if j == 0 { s.alpha[0] } else { s.alpha[j - 1] };
+        let r = if j == n { s.alpha[n - 1] } else { s.alpha[j] };
+        // at a boundary junction the cell decides: the boundary's composition only describes
+        // fluid that would enter
+        let (l, r) = match (j == 0, j == n) {
+            (true, _) => (r, r),
+            (_, true) => (l, l),
+            _ => (l, r),
+        };
+        (l.min(r), (1.0 - l).min(1.0 - r))
+    }
+
     fn junction_coefficients(
         &self,
         s: &State,
         j: usize,
-        dt: f64,
         inlet: &BoundaryState,
         outlet: &BoundaryState,
         grav: f64,
@@ -838,9 +928,13 @@ impl<'a> Scheme<'a> {
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
         let vr = (vg - vl).abs();
         let mut drag = if ph.interphase_drag { ph.drag_coefficient * a_g * a_l * rho_m * vr / d } else { 0.0 };
-        // a disappearing phase is tied to the continuous one (phase blending, paper eq. smoother)
-        let pres = presence(a_g.min(a_l), ph.blend_min, ph.blend_max);
-        drag += (1.0 - pres) * 1e3 * rho_m / dt;
+        // A disappearing phase is tied to the continuous one (phase blending, paper eq.
+        // "smoother"). At a junction a phase counts as disappearing when either neighbouring
+        // cell (nearly) lacks it: its velocity there is otherwise undetermined by anything
+        // physical, and through the convective term it would drag the neighbouring junctions.
+        let (side_g, side_l) = self.junction_min_fractions(s, j);
+        let pres = presence(side_g.min(side_l), ph.blend_min, ph.blend_max);
+        drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
         let vm = if ph.virtual_mass { ph.virtual_mass_coefficient * a_g * a_l * rho_m } else { 0.0 };
         let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
         JunctionCoefficients {
@@ -909,7 +1003,7 @@ impl<'a> Scheme<'a> {
         let mut gamma = Lin::default();
         // interphase heat exchange (and phase-blending exchange for a vanishing phase)
         let h_exchange = if ph.interphase_heat_transfer { ph.interphase_htc_w_m3k * a * b } else { 0.0 };
-        let blend = |pres: f64, m: f64, cp: f64| (1.0 - pres) * m.max(0.0) * cp / dt;
+        let blend = |pres: f64, m: f64, cp: f64| (1.0 - pres) * m.max(0.0) * cp / BLEND_RELAXATION_S;
         let h_blend = blend(pres_g, s.m_g[i], gp.cp) + blend(pres_l, s.m_l[i], lp.cp);
         let sat = if ph.phase_change { self.fluid.saturation(s.p[i]).ok() } else { None };
         match sat {

@@ -1,0 +1,157 @@
+//! The solver against problems with exact answers, and its conservation properties.
+//!
+//! Grid sizes and end times are the ones the done-criteria name where that is cheap; the
+//! benchmark (`cargo bench -p cryofit-solver --bench scheme`) runs the larger versions.
+
+use cryofit_solver::driver::{self, Output};
+use cryofit_solver::exact::{self, Schumann};
+use cryofit_solver::fluids::{self, Phase};
+use cryofit_solver::model::{GRAVITY, Grid};
+use cryofit_solver::reference::Reference;
+
+fn run(case: &cryofit_solver::case::Case) -> Output {
+    let fluid = fluids::embedded(&case.fluid.name).unwrap();
+    let params = driver::case_parameters(case).unwrap();
+    driver::run(case, fluid, &params, &mut |_| {}).unwrap_or_else(|e| panic!("{}: {e}", case.title))
+}
+
+/// Mean absolute error of the faucet void profile at the end time against the exact solution.
+fn faucet_error(cells: usize) -> (f64, Output) {
+    let case = Reference::Faucet.with_cells(cells);
+    let out = run(&case);
+    let g = Grid::from_case(&case);
+    let s = &out.final_state;
+    let mae = (0..g.n)
+        .map(|i| (s.alpha[i] - exact::faucet_void_fraction(g.x_cell[i], s.time, 0.2, 10.0, GRAVITY)).abs())
+        .sum::<f64>()
+        / g.n as f64;
+    (mae, out)
+}
+
+#[test]
+fn faucet_void_profile_converges_to_the_exact_solution() {
+    let mut errors = Vec::new();
+    for cells in [25, 50, 100, 200] {
+        let (mae, out) = faucet_error(cells);
+        println!("faucet {cells} cells: mean |Δα| = {mae:.4}, steps {}", out.summary.steps);
+        assert!((out.summary.simulated_time_s - 0.5).abs() < 1e-9);
+        // open system: inflow − outflow − accumulation
+        assert!(out.summary.mass_balance_error <= 1e-8, "mass balance {}", out.summary.mass_balance_error);
+        assert!(out.summary.scheme_energy_error <= 1e-8, "scheme energy {}", out.summary.scheme_energy_error);
+        errors.push((cells, mae));
+    }
+    let at100 = errors.iter().find(|e| e.0 == 100).unwrap().1;
+    assert!(at100 <= 0.02, "faucet error on 100 cells {at100}");
+    for w in errors.windows(2) {
+        assert!(w[1].1 < w[0].1, "error does not fall from {} to {} cells: {:?}", w[0].0, w[1].0, errors);
+    }
+}
+
+#[test]
+fn manometer_oscillates_with_the_exact_period() {
+    let case = Reference::Manometer.case();
+    let out = run(&case);
+    let v: Vec<(f64, f64)> = out
+        .probes
+        .iter()
+        .filter(|o| o.station == "bottom" && o.quantity == "liquid_velocity_m_s")
+        .map(|o| (o.time_s, o.value))
+        .collect();
+    // zero crossings of the liquid velocity at the bottom of the U
+    let mut crossings = Vec::new();
+    for w in v.windows(2) {
+        let ((t0, v0), (t1, v1)) = (w[0], w[1]);
+        if v0 != 0.0 && v0.signum() != v1.signum() {
+            crossings.push(t0 + (t1 - t0) * v0 / (v0 - v1));
+        }
+    }
+    assert!(crossings.len() >= 7, "only {} zero crossings: {crossings:?}", crossings.len());
+    let exact_period = exact::manometer_period_s(10.0, GRAVITY);
+    let periods = (crossings.len() - 1) / 2;
+    let measured = (crossings[2 * periods] - crossings[0]) / periods as f64;
+    // amplitude in each half period
+    let mut amplitudes = Vec::new();
+    for w in crossings.windows(2) {
+        let a = v.iter().filter(|(t, _)| *t > w[0] && *t < w[1]).map(|(_, x)| x.abs()).fold(0.0, f64::max);
+        amplitudes.push(a);
+    }
+    println!(
+        "manometer: period {measured:.4} s over {periods} periods (exact {exact_period:.4} s, {:+.2} %), half-period amplitudes {:?}",
+        100.0 * (measured / exact_period - 1.0),
+        amplitudes.iter().map(|a| format!("{a:.3}")).collect::<Vec<_>>()
+    );
+    assert!(periods >= 3);
+    assert!((measured / exact_period - 1.0).abs() <= 0.02, "period {measured} vs {exact_period}");
+    // a frictionless manometer would keep its amplitude: what decays is numerical damping
+    // (donor-cell smearing of the two interfaces), reported above; it must neither grow nor
+    // swallow the oscillation
+    assert!(amplitudes.iter().all(|&a| a > 0.6 && a < 1.05), "{amplitudes:?}");
+    assert!(amplitudes.windows(2).all(|w| w[1] <= w[0] + 0.01), "amplitude grows: {amplitudes:?}");
+    assert!(out.summary.mass_balance_error <= 1e-8, "mass balance {}", out.summary.mass_balance_error);
+    assert!(out.summary.scheme_energy_error <= 1e-8);
+}
+
+#[test]
+fn phases_separate_in_a_closed_tube() {
+    let case = Reference::Separation.case();
+    let out = run(&case);
+    let g = Grid::from_case(&case);
+    let s = &out.final_state;
+    // void fraction never outside [0, 1], at any profile time
+    for p in out.profiles.iter().filter(|p| p.quantity == "void_fraction") {
+        assert!((0.0..=1.0).contains(&p.value), "void fraction {} at x = {} t = {}", p.value, p.x_m, p.time_s);
+    }
+    let level = 0.5 * case.pipe.length_m;
+    for i in 0..g.n {
+        let x = g.x_cell[i];
+        if x < level - g.dx[i] {
+            assert!(s.alpha[i] < 0.005, "gas left at x = {x}: {}", s.alpha[i]);
+        } else if x > level + g.dx[i] {
+            assert!(s.alpha[i] > 0.995, "liquid left at x = {x}: {}", 1.0 - s.alpha[i]);
+        }
+    }
+    // hydrostatic pressure: ρ_l g in the liquid, ρ_g g in the gas
+    let cell_at = |x: f64| g.cell_at(x);
+    let (a, b) = (cell_at(0.2 * level), cell_at(0.9 * level));
+    let grad_l = (s.p[a] - s.p[b]) / (g.x_cell[b] - g.x_cell[a]);
+    let rho_l = s.liquid[a].rho;
+    println!("separation: liquid pressure gradient {grad_l:.1} Pa/m, ρ_l g = {:.1}", rho_l * GRAVITY);
+    assert!((grad_l / (rho_l * GRAVITY) - 1.0).abs() < 0.01, "liquid gradient {grad_l}");
+    let (c, d) = (cell_at(1.2 * level), cell_at(1.9 * level));
+    let grad_g = (s.p[c] - s.p[d]) / (g.x_cell[d] - g.x_cell[c]);
+    let rho_g = s.gas[c].rho;
+    assert!(grad_g > 0.0 && grad_g < 3.0 * rho_g * GRAVITY, "gas gradient {grad_g} vs ρ_g g {}", rho_g * GRAVITY);
+    // at rest
+    assert!(s.v_l.iter().chain(&s.v_g).all(|v| v.abs() < 0.05), "not at rest");
+    // closed system: mass to round-off
+    assert!(out.summary.mass_balance_error <= 1e-10, "mass {}", out.summary.mass_balance_error);
+    assert!(out.summary.scheme_energy_error <= 1e-8);
+}
+
+#[test]
+fn gas_cools_the_wall_as_schumann_predicts() {
+    let mut case = Reference::Schumann.case();
+    case.time.end_s = 150.0;
+    let out = run(&case);
+    let fluid = fluids::embedded("nitrogen").unwrap();
+    let g = Grid::from_case(&case);
+    let gas = fluid.phase_props(Phase::Gas, 1.0e5, 201.0).unwrap();
+    let c_w = g.wall_mass[0] / g.dx[0] * g.material.specific_heat_j_kg_k(201.0);
+    let h = case.physics.wall_htc_w_m2k.unwrap() * g.perimeter;
+    let ex = Schumann::new(gas.rho * gas.cp * g.area_cell[0], c_w, h, 1.0, 200.0, 202.0);
+    let mut worst: f64 = 0.0;
+    for p in out.profiles.iter().filter(|p| p.time_s > 0.0) {
+        let (tf, tw) = ex.temperatures(p.x_m, p.time_s);
+        let err = match p.quantity {
+            "gas_temperature_k" => (p.value - tf).abs(),
+            "wall_temperature_k" => (p.value - tw).abs(),
+            _ => continue,
+        };
+        worst = worst.max(err / 2.0);
+    }
+    println!("schumann: worst error {:.2} % of the initial difference", 100.0 * worst);
+    assert!(worst <= 0.02, "worst error {worst} of the initial difference");
+    assert!(out.summary.mass_balance_error <= 1e-8);
+    assert!(out.summary.scheme_energy_error <= 1e-8);
+    assert!(out.summary.energy_balance_error <= 1e-3, "energy balance {}", out.summary.energy_balance_error);
+}
