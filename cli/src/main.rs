@@ -1,7 +1,9 @@
 //! `cryofit`: the one binary users run. Parses the command line and hands over to a command.
 
 mod fluid_source;
+mod params_cmd;
 mod props;
+mod simulate;
 
 use std::process::ExitCode;
 
@@ -23,6 +25,10 @@ struct Cli {
 enum Command {
     /// Fluid properties at a pressure and temperature (from the built-in CoolProp tables).
     Props(props::PropsArgs),
+    /// Run a case file and write probes.csv, profiles.csv and summary.json.
+    Simulate(simulate::SimulateArgs),
+    /// List the model parameters: name, group, default, bounds, unit and meaning.
+    Params(params_cmd::ParamsArgs),
 }
 
 fn main() -> ExitCode {
@@ -52,6 +58,8 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Props(args) => props::run(&args),
+        Command::Simulate(args) => simulate::run(&args),
+        Command::Params(args) => params_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

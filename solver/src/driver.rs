@@ -384,8 +384,12 @@ pub fn run(
     let net_in = cum.mass_in - cum.mass_out;
     let mass_balance_error = (m1 - m0 - net_in).abs() / m0.max(cum.mass_in.abs() + cum.mass_out.abs()).max(1e-300);
     let e1_scheme = fluid_internal_energy(&s, &grid);
-    let scheme_terms = cum.energy_flux + cum.pressure_work + cum.wall_heat + cum.adjustment;
-    let scheme_scale = cum.energy_flux.abs() + cum.pressure_work.abs() + cum.wall_heat.abs() + e0_scheme.abs().max(1.0);
+    let scheme_terms = cum.energy_flux + cum.pressure_work + cum.wall_heat + cum.adjustment + cum.dissipation;
+    let scheme_scale = cum.energy_flux.abs()
+        + cum.pressure_work.abs()
+        + cum.wall_heat.abs()
+        + cum.dissipation.abs()
+        + e0_scheme.abs().max(1.0);
     let scheme_energy_error = (e1_scheme - e0_scheme - scheme_terms).abs() / scheme_scale;
     let e1_total = total_energy(&s, &grid, case.physics.gravity);
     let phys_terms = cum.total_energy_flux + cum.ambient_heat;
@@ -437,6 +441,7 @@ fn add_budget(c: &mut StepBudget, b: &StepBudget) {
     c.wall_heat += b.wall_heat;
     c.ambient_heat += b.ambient_heat;
     c.adjustment += b.adjustment;
+    c.dissipation += b.dissipation;
     c.total_energy_flux += b.total_energy_flux;
 }
 
@@ -481,6 +486,20 @@ fn total_energy(s: &State, g: &Grid, gravity: bool) -> f64 {
     total
 }
 
+/// The quantities written for every station, in order (DESIGN.md §3.2).
+pub const PROBE_QUANTITIES: [&str; 10] = [
+    "wall_temperature_k",
+    "fluid_temperature_k",
+    "pressure_pa",
+    "void_fraction",
+    "gas_temperature_k",
+    "liquid_temperature_k",
+    "gas_velocity_m_s",
+    "liquid_velocity_m_s",
+    "wall_heat_flux_w_m2",
+    "mass_flow_kg_s",
+];
+
 fn record_probes(out: &mut Vec<Observation>, s: &State, g: &Grid, stations: &[(String, f64, usize)]) {
     for (name, x, c) in stations {
         let i = *c;
@@ -488,23 +507,19 @@ fn record_probes(out: &mut Vec<Observation>, s: &State, g: &Grid, stations: &[(S
         let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
         let a = s.alpha[i];
         let mass_flow = g.area_cell[i] * (s.m_g[i] * vg + s.m_l[i] * vl);
-        let values: [(&'static str, f64); 11] = [
-            ("wall_temperature_k", s.t_w[i]),
-            ("fluid_temperature_k", fluid_temperature(a, s.t_g[i], s.t_l[i])),
-            ("pressure_pa", s.p[i]),
-            ("void_fraction", a),
-            ("gas_temperature_k", s.t_g[i]),
-            ("liquid_temperature_k", s.t_l[i]),
-            ("gas_velocity_m_s", vg),
-            ("liquid_velocity_m_s", vl),
-            ("wall_heat_flux_w_m2", s.wall_heat_flux[i]),
-            ("mass_flow_kg_s", mass_flow),
-            ("volume_error", s.volume_error[i]),
+        let values: [f64; 10] = [
+            s.t_w[i],
+            fluid_temperature(a, s.t_g[i], s.t_l[i]),
+            s.p[i],
+            a,
+            s.t_g[i],
+            s.t_l[i],
+            vg,
+            vl,
+            s.wall_heat_flux[i],
+            mass_flow,
         ];
-        for (quantity, value) in values {
-            if quantity == "volume_error" {
-                continue;
-            }
+        for (quantity, value) in PROBE_QUANTITIES.into_iter().zip(values) {
             out.push(Observation { time_s: s.time, station: name.clone(), x_m: *x, quantity, value });
         }
     }

@@ -16,6 +16,10 @@ pub enum Reference {
     Separation,
     /// Single-phase gas cooling a warm wall (`schumann.toml`).
     Schumann,
+    /// Liquid from a reservoir through a valve and a pipe (`liquid_reservoir.toml`).
+    LiquidReservoir,
+    /// Cold gas cooling the 61 m NBS line for 1000 s (`gas_cooldown.toml`).
+    GasCooldown,
 }
 
 impl Reference {
@@ -30,6 +34,8 @@ impl Reference {
             Reference::Manometer => "manometer.toml",
             Reference::Separation => "separation.toml",
             Reference::Schumann => "schumann.toml",
+            Reference::LiquidReservoir => "liquid_reservoir.toml",
+            Reference::GasCooldown => "gas_cooldown.toml",
         }
     }
 
@@ -40,6 +46,8 @@ impl Reference {
             Reference::Manometer => include_str!("../../examples/verification/manometer.toml"),
             Reference::Separation => include_str!("../../examples/verification/separation.toml"),
             Reference::Schumann => include_str!("../../examples/verification/schumann.toml"),
+            Reference::LiquidReservoir => include_str!("../../examples/verification/liquid_reservoir.toml"),
+            Reference::GasCooldown => include_str!("../../examples/verification/gas_cooldown.toml"),
         }
     }
 

@@ -126,6 +126,8 @@ pub struct StepBudget {
     pub wall_heat: f64,
     /// Heat from the ambient into the wall, J.
     pub ambient_heat: f64,
+    /// Frictional dissipation returned to the fluid as heat, J.
+    pub dissipation: f64,
     /// Energy added by state adjustments (vanishing-phase clean-up), J.
     pub adjustment: f64,
     /// Total-energy (h + v²/2 + g z) inflow minus outflow through the boundaries, J.
@@ -219,6 +221,8 @@ struct Sources {
 /// Reusable work arrays of the scheme.
 #[derive(Debug, Clone, Default)]
 struct Work {
+    diss_g: Vec<f64>,
+    diss_l: Vec<f64>,
     vt_g: Vec<f64>,
     vt_l: Vec<f64>,
     w_g: Vec<f64>,
@@ -320,6 +324,8 @@ impl<'a> Scheme<'a> {
             w.lower[j] = Matrix2::zeros();
             w.upper[j] = Matrix2::zeros();
             if let Some((vg, vl)) = prescribed(j) {
+                w.diss_g[j] = 0.0;
+                w.diss_l[j] = 0.0;
                 w.diag[j] = Matrix2::identity();
                 w.rhs2[j] = Vector2::new(vg, vl);
                 continue;
@@ -333,36 +339,34 @@ impl<'a> Scheme<'a> {
                 -jc.drag - jc.vm / dt,
                 jc.ar_l / dt + jc.fric_l + jc.drag + jc.vm / dt,
             );
-            let mut rhs = Vector2::new(
+            let rhs = Vector2::new(
                 jc.ar_g * vg / dt + jc.vm / dt * (vg - vl) - jc.a_g * jc.dp_old / dxj + jc.ar_g * jc.gx,
                 jc.ar_l * vl / dt - jc.vm / dt * (vg - vl) - jc.a_l * jc.dp_old / dxj + jc.ar_l * jc.gx,
             );
-            // implicit donor-cell convection v^n (v_j − v_up)/dx
+            // Implicit donor-cell convection v^n (v_j − v_up)^{n+1} / dx. Out of a reservoir the
+            // fluid starts from rest, and the jump from 0 to v is given its Bernoulli value
+            // ½ ρ v² (the donor-cell form would give ρ v²).
             for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
                 let coef = ar * v.abs() / dxj;
-                diag[(k, k)] += coef;
                 if v >= 0.0 {
                     if j > 0 {
+                        diag[(k, k)] += coef;
                         w.lower[j][(k, k)] -= coef;
-                    } else {
-                        // upstream of the inlet: the reservoir is at rest; other boundaries
-                        // carry the junction's own velocity (no convective acceleration)
-                        let v_up = match inlet0.kind {
-                            BoundaryKind::Reservoir => 0.0,
-                            _ => [vg, vl][k],
-                        };
-                        rhs[k] += coef * v_up;
+                    } else if inlet0.kind == BoundaryKind::Reservoir {
+                        diag[(k, k)] += 0.5 * coef;
                     }
+                    // other inlets carry the junction's own velocity: no convective acceleration
                 } else if j < n {
+                    diag[(k, k)] += coef;
                     w.upper[j][(k, k)] -= coef;
-                } else {
-                    let v_up = match outlet0.kind {
-                        BoundaryKind::Reservoir => 0.0,
-                        _ => [vg, vl][k],
-                    };
-                    rhs[k] += coef * v_up;
+                } else if outlet0.kind == BoundaryKind::Reservoir {
+                    diag[(k, k)] += 0.5 * coef;
                 }
             }
+            // frictional dissipation (wall friction, form losses, interfacial drag) per unit
+            // volume of the junction's control volume, returned to the phases as heat
+            w.diss_g[j] = jc.fric_g * vg * vg + 0.5 * jc.drag_physical * (vg - vl) * (vg - vl);
+            w.diss_l[j] = jc.fric_l * vl * vl + 0.5 * jc.drag_physical * (vg - vl) * (vg - vl);
             w.diag[j] = diag;
             w.rhs2[j] = rhs;
         }
@@ -423,6 +427,9 @@ impl<'a> Scheme<'a> {
             r[1] = s.m_l[i] - b * lp.rho;
             r[2] = s.e_g[i] - a * gp.rho * gp.u;
             r[3] = s.e_l[i] - b * lp.rho * lp.u;
+            // frictional dissipation (from the old velocities; step 2 adds the same heat)
+            r[2] += dt * self.dissipation_share(&w.diss_g, i) / v;
+            r[3] += dt * self.dissipation_share(&w.diss_l, i) / v;
             // sources: row += −dt * source (moved to the left)
             for (row, lin, sign) in [(0, src.gamma, 1.0), (1, src.gamma, -1.0), (2, src.s_g, 1.0), (3, src.s_l, 1.0)] {
                 r[row] += sign * dt * lin.c0;
@@ -567,6 +574,7 @@ impl<'a> Scheme<'a> {
             budget.mass_out += flux_out;
             // energy
             let mut pw_total = 0.0;
+            let mut dissipation = 0.0;
             for i in 0..n {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
@@ -590,7 +598,11 @@ impl<'a> Scheme<'a> {
                 };
                 let pw = -s.p[i] * (v * dvol + frac_flux(i + 1) - frac_flux(i));
                 pw_total += pw;
-                w.d[i] = v * old + pw + v * dt * src.eval(&w.x[i]);
+                // dissipation of junction j (power per volume × junction volume) is shared by
+                // the cells it lies in; a boundary junction's volume lies in its one cell
+                let heat = dt * self.dissipation_share(if gas { &w.diss_g } else { &w.diss_l }, i);
+                dissipation += heat;
+                w.d[i] = v * old + pw + v * dt * src.eval(&w.x[i]) + heat;
             }
             if vel[0] > 0.0 {
                 w.d[0] += dt * vel[0] * a0 * in_e;
@@ -605,6 +617,7 @@ impl<'a> Scheme<'a> {
             let e_out = dt * vel[n] * an * if vel[n] >= 0.0 { w.d[n - 1] } else { out_e };
             budget.energy_flux += e_in - e_out;
             budget.pressure_work += pw_total;
+            budget.dissipation += dissipation;
             for i in 0..n {
                 if gas {
                     next.m_g[i] = masses[i];
@@ -677,7 +690,7 @@ impl<'a> Scheme<'a> {
                         reason: "outside the property table",
                     })?;
                     budget.adjustment += (m * pr.u - e) * g.volume[i];
-                    Ok((target, pr, m * pr.u, true))
+                    Ok((target, pr, m * pr.u, m > tiny))
                 };
                 if m <= tiny {
                     return reset(budget);
@@ -729,6 +742,21 @@ impl<'a> Scheme<'a> {
         // boundary mass fluxes (donor properties)
         budget.total_energy_flux = self.total_energy_flux(&next, s, dt, inlet1, outlet1);
         next.time = s.time + dt;
+
+        // no NaN escapes a step: anything non-finite rejects it, naming where
+        let finite = |v: &[f64]| v.iter().position(|x| !x.is_finite());
+        for (name, values) in [
+            ("gas velocity", &next.v_g),
+            ("liquid velocity", &next.v_l),
+            ("wall temperature", &next.t_w),
+            ("gas energy", &next.e_g),
+            ("liquid energy", &next.e_l),
+            ("void fraction", &next.alpha),
+        ] {
+            if let Some(i) = finite(values) {
+                return Err(Rejection { cell: i, variable: name, value: values[i], reason: "not a finite number" });
+            }
+        }
 
         // ---- step control ----
         let mut ratio: f64 = 0.0;
@@ -791,6 +819,19 @@ impl<'a> Scheme<'a> {
             });
         }
         Ok((next, StepReport { change_ratio: ratio, max_volume_error: max_verr, budget }))
+    }
+
+    /// Dissipated power (W) that cell `i` receives from its two junctions: each junction's
+    /// power per volume times its control volume, shared by the cells it lies in (a boundary
+    /// junction's control volume lies wholly in its one cell).
+    fn dissipation_share(&self, diss: &[f64], i: usize) -> f64 {
+        let g = &self.grid;
+        let share = |j: usize| -> f64 {
+            let vol = g.area_junction[j] * g.dx_junction(j);
+            let inside = if j == 0 || j == g.n { 1.0 } else { 0.5 };
+            inside * diss[j] * vol
+        };
+        share(i) + share(i + 1)
     }
 
     fn open_fraction(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
@@ -927,7 +968,8 @@ impl<'a> Scheme<'a> {
         }
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
         let vr = (vg - vl).abs();
-        let mut drag = if ph.interphase_drag { ph.drag_coefficient * a_g * a_l * rho_m * vr / d } else { 0.0 };
+        let drag_physical = if ph.interphase_drag { ph.drag_coefficient * a_g * a_l * rho_m * vr / d } else { 0.0 };
+        let mut drag = drag_physical;
         // A disappearing phase is tied to the continuous one (phase blending, paper eq.
         // "smoother"). At a junction a phase counts as disappearing when either neighbouring
         // cell (nearly) lacks it: its velocity there is otherwise undetermined by anything
@@ -945,6 +987,7 @@ impl<'a> Scheme<'a> {
             fric_g,
             fric_l,
             drag,
+            drag_physical,
             vm,
             dp_old: p_r - p_l,
             gx: -grav * g.sin_junction[j],
@@ -1061,7 +1104,9 @@ impl<'a> Scheme<'a> {
                 } else {
                     (next.m_l[c], old.liquid[c].h)
                 };
-                total += sign * dt * v * area * m * (h + 0.5 * v * v + grav * z);
+                // fluid drawn from a reservoir brings its stagnation enthalpy (it was at rest)
+                let ke = if inflow && b.kind == BoundaryKind::Reservoir { 0.0 } else { 0.5 * v * v };
+                total += sign * dt * v * area * m * (h + ke + grav * z);
             }
         }
         total
@@ -1115,6 +1160,7 @@ struct JunctionCoefficients {
     fric_g: f64,
     fric_l: f64,
     drag: f64,
+    drag_physical: f64,
     vm: f64,
     dp_old: f64,
     gx: f64,
@@ -1123,7 +1169,7 @@ struct JunctionCoefficients {
 fn resize(w: &mut Work, n: usize) {
     let nj = n + 1;
     let m = nj.max(n);
-    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l] {
+    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.diss_g, &mut w.diss_l] {
         v.resize(nj, 0.0);
     }
     for v in [&mut w.a, &mut w.b, &mut w.c, &mut w.d, &mut w.s] {

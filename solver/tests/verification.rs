@@ -155,3 +155,88 @@ fn gas_cools_the_wall_as_schumann_predicts() {
     assert!(out.summary.scheme_energy_error <= 1e-8);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance {}", out.summary.energy_balance_error);
 }
+
+#[test]
+fn reservoir_flow_reaches_bernoulli_with_losses() {
+    let case = Reference::LiquidReservoir.case();
+    let out = run(&case);
+    let s = &out.final_state;
+    let g = Grid::from_case(&case);
+    let rho = s.liquid[g.n / 2].rho;
+    let mu = s.liquid[g.n / 2].mu;
+    let v = s.v_l[g.n / 2];
+    // p_res − p_out = ρ v²/2 (1 + K + f L/D), f from Churchill at the flow's Reynolds number
+    let re = rho * v * g.d_h / mu;
+    let f = cryofit_solver::closures::churchill_darcy(re, 0.0);
+    let predicted = 0.5 * rho * v * v * (1.0 + 2.0 + f * case.pipe.length_m / g.d_h);
+    println!("reservoir: v = {v:.4} m/s, Re = {re:.0}, f = {f:.5}, Δp predicted {predicted:.0} Pa of 50000");
+    assert!((predicted / 5.0e4 - 1.0).abs() < 0.02, "steady flow {v} m/s implies Δp {predicted}");
+    // steady: the same velocity everywhere, liquid only
+    assert!(s.v_l.iter().all(|x| (x - v).abs() < 1e-3 * v));
+    assert!(s.alpha.iter().all(|&a| a == 0.0));
+    assert!(out.summary.mass_balance_error <= 1e-8);
+    assert!(out.summary.scheme_energy_error <= 1e-8);
+}
+
+#[test]
+fn gas_cooldown_closes_the_energy_balance() {
+    let case = Reference::GasCooldown.case();
+    let out = run(&case);
+    println!(
+        "gas cool-down: steps {}, energy balance {:.2e}, scheme budget {:.2e}, mass {:.2e}",
+        out.summary.steps,
+        out.summary.energy_balance_error,
+        out.summary.scheme_energy_error,
+        out.summary.mass_balance_error
+    );
+    assert!(out.summary.mass_balance_error <= 1e-8);
+    assert!(out.summary.scheme_energy_error <= 1e-8);
+    assert!(out.summary.energy_balance_error <= 1e-3);
+    // the wall cools from the inlet on
+    let s = &out.final_state;
+    assert!(s.t_w[0] < 100.0 && s.t_w[s.t_w.len() - 1] > 250.0, "{:?}", s.t_w);
+    assert!(s.t_w.windows(2).all(|w| w[0] <= w[1] + 0.05));
+}
+
+#[test]
+fn run_limits_end_runs_with_errors() {
+    let mut case = Reference::Faucet.case();
+    case.time.max_steps = Some(5);
+    let fluid = fluids::embedded("nitrogen").unwrap();
+    let params = driver::case_parameters(&case).unwrap();
+    let err = driver::run(&case, fluid, &params, &mut |_| {}).unwrap_err();
+    assert!(matches!(err, driver::SimError::MaxSteps { steps: 5, .. }), "{err}");
+    let mut case = Reference::Faucet.case();
+    case.time.max_wall_s = Some(1e-9);
+    let err = driver::run(&case, fluid, &params, &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("max_wall_s"), "{err}");
+    // a minimum step that cannot be met names time, cell, variable and value
+    let mut case = Reference::Faucet.case();
+    case.time.initial_dt_s = 0.2;
+    case.time.max_dt_s = 0.2;
+    case.time.max_courant = 100.0;
+    case.time.min_dt_s = 0.1;
+    let err = driver::run(&case, fluid, &params, &mut |_| {}).unwrap_err();
+    let msg = err.to_string();
+    assert!(matches!(err, driver::SimError::StepTooSmall { .. }), "{msg}");
+    assert!(msg.contains("cell") && msg.contains("t = "), "{msg}");
+}
+
+#[test]
+fn boundary_time_tables_drive_the_run() {
+    // the reservoir pressure ramps from 1.0 to 1.5 bar over 2 s: no flow at first, then flow
+    let text =
+        Reference::LiquidReservoir.text().replace("pressure_pa = 1.5e5", "pressure_pa = [[0.0, 1.0e5], [2.0, 1.5e5]]");
+    let case = cryofit_solver::case::Case::from_toml(&text, "ramp.toml").unwrap();
+    let out = run(&case);
+    let v_at = |t: f64| {
+        out.probes
+            .iter()
+            .filter(|o| o.quantity == "liquid_velocity_m_s" && (o.time_s - t).abs() < 1e-9)
+            .map(|o| o.value)
+            .next()
+            .unwrap()
+    };
+    assert!(v_at(0.1).abs() < 0.2, "{}", v_at(0.1));
+    assert!(v_at(1.0) > 0.5 && v_at(1.0) < v_at(5.0), "{} {}", v_at(1.0), v_at(5.0));
+}

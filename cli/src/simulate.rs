@@ -1,0 +1,386 @@
+//! `cryofit simulate CASE.toml [--out DIR] [--set NAME=VALUE]... [--params FILE.toml]
+//! [--noise QUANTITY=SIGMA]... [--seed N]`.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io::{IsTerminal, Write as _};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use cryofit_solver::case::Case;
+use cryofit_solver::driver::{self, Observation, Output, ProfilePoint, Progress};
+use cryofit_solver::params::ParameterSet;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, Normal};
+
+use crate::fluid_source;
+
+use cryofit_solver::driver::PROBE_QUANTITIES;
+
+/// Arguments of `cryofit simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// The case file (TOML).
+    case: PathBuf,
+    /// Output directory [default: out/<case file stem>].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Set a registry parameter (repeatable; overrides --params and the case's [parameters]).
+    #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    set: Vec<String>,
+    /// A TOML file of `name = number` parameter values (overrides the case's [parameters]).
+    #[arg(long, value_name = "FILE.toml")]
+    params: Option<PathBuf>,
+    /// Add Gaussian noise N(0, SIGMA) to every probe value of QUANTITY (repeatable).
+    #[arg(long = "noise", value_name = "QUANTITY=SIGMA", allow_hyphen_values = true)]
+    noise: Vec<String>,
+    /// Seed of the noise generator: the same seed gives the same noise.
+    #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true)]
+    seed: u64,
+}
+
+/// Runs a case and writes `probes.csv`, `profiles.csv` and `summary.json`.
+pub fn run(args: &SimulateArgs) -> Result<()> {
+    let case_path = args.case.display().to_string();
+    let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {case_path}"))?;
+    let case = Case::from_toml(&text, &case_path)?;
+    let params = parameters(&case, &case_path, args.params.as_deref(), &args.set)?;
+    let noise = parse_noise(&args.noise)?;
+    let out_dir = match &args.out {
+        Some(dir) => dir.clone(),
+        None => {
+            let stem = args.case.file_stem().map_or_else(|| "case".into(), |s| s.to_string_lossy().into_owned());
+            Path::new("out").join(stem)
+        }
+    };
+    if out_dir.exists() && !out_dir.is_dir() {
+        bail!("--out {}: exists and is not a directory", out_dir.display());
+    }
+    let table = fluid_source::load(&case.fluid.name)?;
+
+    let mut bar = ProgressBar::new(std::io::stderr().is_terminal());
+    let result = driver::run(&case, &table, &params, &mut |p| bar.update(p));
+    bar.clear();
+    let mut output = result.with_context(|| format!("{case_path}: simulation failed"))?;
+
+    add_noise(&mut output.probes, &noise, args.seed);
+    let summary = summary_json(&output, &case_path, &params, &noise, args.seed)?;
+    write_outputs(
+        &out_dir,
+        &[
+            ("probes.csv", probes_csv(&output.probes)),
+            ("profiles.csv", profiles_csv(&output.profiles)),
+            ("summary.json", summary),
+        ],
+    )?;
+    print_summary(&case, &case_path, &output, &params, &noise, args.seed, &out_dir);
+    Ok(())
+}
+
+/// The parameter set with precedence `--set` > `--params` > the case's `[parameters]` > defaults.
+fn parameters(case: &Case, case_path: &str, params_file: Option<&Path>, sets: &[String]) -> Result<ParameterSet> {
+    let mut params = driver::case_parameters(case).map_err(|e| anyhow!("{case_path}: {e}"))?;
+    if let Some(file) = params_file {
+        params.overlay(&read_params_file(file)?);
+    }
+    for arg in sets {
+        let (name, value) = split_assignment(arg)
+            .ok_or_else(|| anyhow!("--set {arg}: expected NAME=VALUE, e.g. --set vm_coeff=0.7"))?;
+        let value: f64 = value.parse().map_err(|_| anyhow!("--set {arg}: '{value}' is not a number"))?;
+        params.set(name, value).map_err(|e| anyhow!("--set {arg}: {e}"))?;
+    }
+    Ok(params)
+}
+
+/// `NAME=VALUE` split and trimmed; `None` when there is no `=` or the name is empty.
+fn split_assignment(arg: &str) -> Option<(&str, &str)> {
+    let (name, value) = arg.split_once('=')?;
+    let name = name.trim();
+    (!name.is_empty()).then_some((name, value.trim()))
+}
+
+/// Reads a `--params` file: a flat TOML table of `name = number`.
+fn read_params_file(path: &Path) -> Result<ParameterSet> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {file}"))?;
+    let table: toml::Table = toml::from_str(&text).map_err(|e| {
+        let msg = e.message().trim().replace('\n', " ");
+        match e.span() {
+            Some(s) => anyhow!("{file}: line {}: {msg}", text[..s.start.min(text.len())].lines().count().max(1)),
+            None => anyhow!("{file}: {msg}"),
+        }
+    })?;
+    let mut set = ParameterSet::new();
+    for (key, value) in &table {
+        let number = match value {
+            toml::Value::Float(f) => *f,
+            // integers are exact in f64 up to 2^53, far beyond any parameter bound
+            toml::Value::Integer(i) => *i as f64,
+            toml::Value::Table(_) => {
+                bail!("{file}: '{key}' is a table; the file must be a flat list of `name = number` lines")
+            }
+            other => bail!("{file}: {key} = {other}: expected a number, found a {}", other.type_str()),
+        };
+        set.set(key, number).map_err(|e| anyhow!("{file}: {e}"))?;
+    }
+    Ok(set)
+}
+
+/// `--noise QUANTITY=SIGMA` arguments as quantity → sigma.
+fn parse_noise(args: &[String]) -> Result<BTreeMap<&'static str, f64>> {
+    let mut noise = BTreeMap::new();
+    for arg in args {
+        let (name, sigma) = split_assignment(arg)
+            .ok_or_else(|| anyhow!("--noise {arg}: expected QUANTITY=SIGMA, e.g. --noise wall_temperature_k=0.5"))?;
+        let Some(quantity) = PROBE_QUANTITIES.iter().copied().find(|q| *q == name) else {
+            bail!("--noise {arg}: unknown quantity '{name}'; use one of {}", PROBE_QUANTITIES.join(", "));
+        };
+        let sigma: f64 = sigma.parse().map_err(|_| anyhow!("--noise {arg}: '{sigma}' is not a number"))?;
+        if !(sigma.is_finite() && sigma >= 0.0) {
+            bail!("--noise {arg}: the standard deviation must be a finite number ≥ 0");
+        }
+        if noise.insert(quantity, sigma).is_some() {
+            bail!("--noise {arg}: noise for {quantity} is given more than once");
+        }
+    }
+    Ok(noise)
+}
+
+/// Adds N(0, sigma) to every probe value of each noisy quantity. Each quantity has its own
+/// generator, seeded from `seed` and the quantity's name, so the noise on one quantity does not
+/// depend on which other quantities are noisy.
+fn add_noise(probes: &mut [Observation], noise: &BTreeMap<&'static str, f64>, seed: u64) {
+    for (&quantity, &sigma) in noise {
+        if sigma == 0.0 {
+            continue;
+        }
+        let normal = Normal::new(0.0, sigma).expect("sigma is finite and positive");
+        let mut rng = StdRng::seed_from_u64(seed ^ fnv1a(quantity));
+        for obs in probes.iter_mut().filter(|o| o.quantity == quantity) {
+            obs.value += normal.sample(&mut rng);
+        }
+    }
+}
+
+/// 64-bit FNV-1a: a stable hash (unlike `DefaultHasher`, fixed across Rust versions).
+fn fnv1a(s: &str) -> u64 {
+    s.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// A number that reads back to the same `f64`: plain decimals for ordinary magnitudes,
+/// scientific notation otherwise (both are Rust's shortest round-trip forms).
+pub fn fmt_num(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || !a.is_finite() || (1e-3..1e6).contains(&a) { format!("{v}") } else { format!("{v:e}") }
+}
+
+/// `v` rounded to 6 significant digits, for messages (hides 0.49999999999999994).
+fn round_sig(v: f64) -> f64 {
+    format!("{v:.5e}").parse().unwrap_or(v)
+}
+
+/// A CSV field, quoted when it contains a separator, a quote or a line break.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
+}
+
+fn probes_csv(probes: &[Observation]) -> String {
+    let mut s = String::from("time_s,station,x_m,quantity,value\n");
+    for o in probes {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{}",
+            fmt_num(o.time_s),
+            csv_field(&o.station),
+            fmt_num(o.x_m),
+            o.quantity,
+            fmt_num(o.value)
+        );
+    }
+    s
+}
+
+fn profiles_csv(profiles: &[ProfilePoint]) -> String {
+    let mut s = String::from("time_s,x_m,quantity,value\n");
+    for p in profiles {
+        let _ = writeln!(s, "{},{},{},{}", fmt_num(p.time_s), fmt_num(p.x_m), p.quantity, fmt_num(p.value));
+    }
+    s
+}
+
+/// The run summary plus the case path, the parameters set explicitly and the noise settings.
+fn summary_json(
+    output: &Output,
+    case_path: &str,
+    params: &ParameterSet,
+    noise: &BTreeMap<&'static str, f64>,
+    seed: u64,
+) -> Result<String> {
+    let mut value = serde_json::to_value(&output.summary)?;
+    let obj = value.as_object_mut().context("the run summary is not a JSON object")?;
+    obj.insert("case".into(), case_path.into());
+    obj.insert("parameters".into(), serde_json::to_value(params.explicit())?);
+    obj.insert("noise".into(), serde_json::to_value(noise)?);
+    obj.insert("seed".into(), seed.into());
+    let mut text = serde_json::to_string_pretty(&value)?;
+    text.push('\n');
+    Ok(text)
+}
+
+/// Creates `dir` and writes every file under a temporary name first, then renames them all: a
+/// failed write leaves no partial file behind (and leaves earlier results in place).
+fn write_outputs(dir: &Path, files: &[(&str, String)]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory {}", dir.display()))?;
+    let pid = std::process::id();
+    let temps: Vec<(PathBuf, PathBuf)> =
+        files.iter().map(|(name, _)| (dir.join(format!(".{name}.{pid}.tmp")), dir.join(name))).collect();
+    let cleanup = |temps: &[(PathBuf, PathBuf)]| {
+        for (tmp, _) in temps {
+            let _ = std::fs::remove_file(tmp);
+        }
+    };
+    for ((tmp, _), (_, contents)) in temps.iter().zip(files) {
+        if let Err(e) = std::fs::write(tmp, contents) {
+            cleanup(&temps);
+            return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
+        }
+    }
+    for (k, (tmp, dest)) in temps.iter().enumerate() {
+        if let Err(e) = std::fs::rename(tmp, dest) {
+            cleanup(&temps[k..]);
+            return Err(e).with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()));
+        }
+    }
+    Ok(())
+}
+
+fn print_summary(
+    case: &Case,
+    case_path: &str,
+    output: &Output,
+    params: &ParameterSet,
+    noise: &BTreeMap<&'static str, f64>,
+    seed: u64,
+    out_dir: &Path,
+) {
+    let s = &output.summary;
+    let title = if case.title.is_empty() { case_path.to_string() } else { format!("{} ({case_path})", case.title) };
+    println!("{title}");
+    println!(
+        "  {} steps ({} rejected), simulated {} s in {:.3} s of wall time",
+        s.steps,
+        s.rejected_steps,
+        fmt_num(round_sig(s.simulated_time_s)),
+        s.wall_time_s
+    );
+    println!("  time step {:.3e} … {:.3e} s", s.min_dt_s, s.max_dt_s);
+    println!("  mass balance error {:.3e}, energy balance error {:.3e}", s.mass_balance_error, s.energy_balance_error);
+    let when = |t: Option<f64>| t.map_or_else(|| "not reached".to_string(), |t| format!("{t:.4} s"));
+    for (station, chill) in &s.chilldown_time_s {
+        let quench = s.quench_arrival_s.get(station).copied().flatten();
+        println!("  station {station}: chilldown {}, quench front {}", when(*chill), when(quench));
+    }
+    if !params.explicit().is_empty() {
+        let list: Vec<String> = params.explicit().iter().map(|(k, v)| format!("{k} = {}", fmt_num(*v))).collect();
+        println!("  parameters: {}", list.join(", "));
+    }
+    if !noise.is_empty() {
+        let list: Vec<String> = noise.iter().map(|(k, v)| format!("{k} σ = {}", fmt_num(*v))).collect();
+        println!("  noise (seed {seed}): {}", list.join(", "));
+    }
+    println!("  wrote probes.csv, profiles.csv, summary.json to {}", out_dir.display());
+}
+
+/// A one-line progress bar on stderr, redrawn at most ten times a second; silent when stderr is
+/// not a terminal.
+#[derive(Debug)]
+struct ProgressBar {
+    enabled: bool,
+    last: Option<Instant>,
+    drawn: usize,
+}
+
+impl ProgressBar {
+    const WIDTH: usize = 30;
+
+    fn new(enabled: bool) -> Self {
+        Self { enabled, last: None, drawn: 0 }
+    }
+
+    fn update(&mut self, p: Progress) {
+        if !self.enabled {
+            return;
+        }
+        let now = Instant::now();
+        if self.last.is_some_and(|l| now.duration_since(l) < Duration::from_millis(100)) {
+            return;
+        }
+        self.last = Some(now);
+        let frac = if p.end_s > 0.0 { (p.time_s / p.end_s).clamp(0.0, 1.0) } else { 1.0 };
+        let filled = ((frac * Self::WIDTH as f64).round() as usize).min(Self::WIDTH);
+        let line = format!(
+            "[{}{}] {:5.1}%  t = {:.4} of {} s, {} steps",
+            "#".repeat(filled),
+            "-".repeat(Self::WIDTH - filled),
+            frac * 100.0,
+            p.time_s,
+            fmt_num(p.end_s),
+            p.steps
+        );
+        let pad = self.drawn.saturating_sub(line.chars().count());
+        self.drawn = line.chars().count();
+        let mut err = std::io::stderr().lock();
+        let _ = write!(err, "\r{line}{}", " ".repeat(pad));
+        let _ = err.flush();
+    }
+
+    fn clear(&mut self) {
+        if self.drawn > 0 {
+            let mut err = std::io::stderr().lock();
+            let _ = write!(err, "\r{}\r", " ".repeat(self.drawn));
+            let _ = err.flush();
+            self.drawn = 0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_round_trip() {
+        for v in [0.0, -0.0, 1.0, 0.1, 77.355, 1e5, 123456.789, 1e-7, 6.02e23, -3.5e-300, f64::MIN_POSITIVE, 1.0 / 3.0]
+        {
+            let s = fmt_num(v);
+            assert_eq!(s.parse::<f64>().unwrap().to_bits(), v.to_bits(), "{v} -> {s}");
+        }
+        assert_eq!(fmt_num(80.0), "80");
+        assert_eq!(fmt_num(1e-7), "1e-7");
+    }
+
+    #[test]
+    fn csv_fields_are_quoted_when_needed() {
+        assert_eq!(csv_field("mid"), "mid");
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
+    }
+
+    #[test]
+    fn noise_streams_are_independent_per_quantity() {
+        let obs = |q: &'static str| Observation { time_s: 0.0, station: "s".into(), x_m: 0.0, quantity: q, value: 1.0 };
+        let base = vec![obs("wall_temperature_k"), obs("pressure_pa"), obs("wall_temperature_k")];
+        let mut one = base.clone();
+        add_noise(&mut one, &BTreeMap::from([("wall_temperature_k", 0.5)]), 3);
+        let mut two = base.clone();
+        add_noise(&mut two, &BTreeMap::from([("wall_temperature_k", 0.5), ("pressure_pa", 10.0)]), 3);
+        assert_eq!(one[0], two[0]);
+        assert_eq!(one[2], two[2]);
+        assert_eq!(one[1], base[1]);
+        assert_ne!(two[1], base[1]);
+        assert_ne!(one[0].value, one[2].value);
+    }
+}

@@ -1,0 +1,355 @@
+//! `cryofit simulate` and `cryofit params` end to end: the real binary, its files and its errors.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const FAUCET: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/verification/faucet.toml");
+
+const PROBE_QUANTITIES: [&str; 10] = [
+    "wall_temperature_k",
+    "fluid_temperature_k",
+    "gas_temperature_k",
+    "liquid_temperature_k",
+    "pressure_pa",
+    "void_fraction",
+    "gas_velocity_m_s",
+    "liquid_velocity_m_s",
+    "wall_heat_flux_w_m2",
+    "mass_flow_kg_s",
+];
+
+const SUMMARY_KEYS: [&str; 10] = [
+    "steps",
+    "rejected_steps",
+    "wall_time_s",
+    "simulated_time_s",
+    "min_dt_s",
+    "max_dt_s",
+    "mass_balance_error",
+    "energy_balance_error",
+    "chilldown_time_s",
+    "quench_arrival_s",
+];
+
+/// A scratch directory unique to this process and test, removed when dropped (also on panic).
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("cryofit-simulate-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+
+    /// Writes `text` to `name` in the scratch directory and returns its path as a string.
+    fn write(&self, name: &str, text: &str) -> String {
+        let path = self.path(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// The faucet case, shortened (0.1 s, 20 cells) to keep the tests fast.
+fn fast_faucet() -> String {
+    let text = std::fs::read_to_string(FAUCET).unwrap();
+    assert!(text.contains("end_s = 0.5") && text.contains("cells = 100"), "faucet.toml changed");
+    text.replace("end_s = 0.5", "end_s = 0.1").replace("cells = 100", "cells = 20")
+}
+
+fn cryofit_in(dir: Option<&Path>, args: &[&str]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_cryofit"));
+    cmd.args(args).env_remove("CRYOFIT_DATA_DIR");
+    if let Some(dir) = dir {
+        cmd.current_dir(dir);
+    }
+    cmd.output().expect("run cryofit")
+}
+
+fn cryofit(args: &[&str]) -> Output {
+    cryofit_in(None, args)
+}
+
+fn assert_success(out: &Output) {
+    assert!(out.status.success(), "failed: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// The command fails with one line on stderr that mentions every needle, and prints nothing.
+fn assert_one_line_error<S: AsRef<str>>(args: &[S], needles: &[&str]) {
+    let args: Vec<&str> = args.iter().map(AsRef::as_ref).collect();
+    let out = cryofit(&args);
+    assert!(!out.status.success(), "{args:?} should fail");
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: not one line: {err}");
+    assert!(err.starts_with("error: "), "{args:?}: {err}");
+    for needle in needles {
+        assert!(err.contains(needle), "{args:?}: '{}' does not mention '{needle}'", err.trim_end());
+    }
+    assert!(out.stdout.is_empty(), "{args:?}: printed {}", String::from_utf8_lossy(&out.stdout));
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&read(&dir.join("summary.json"))).expect("summary.json is JSON")
+}
+
+/// `probes.csv` rows split into fields (header excluded).
+fn probe_rows(dir: &Path) -> Vec<Vec<String>> {
+    read(&dir.join("probes.csv")).lines().skip(1).map(|l| l.split(',').map(String::from).collect()).collect()
+}
+
+#[test]
+fn writes_probes_profiles_and_summary() {
+    let tmp = Scratch::new("files");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let out_dir = tmp.path("results");
+    let out = cryofit(&["simulate", &case, "--out", out_dir.to_str().unwrap()]);
+    assert_success(&out);
+    // stderr is not a terminal here: no progress bar
+    assert!(out.stderr.is_empty(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("steps") && stdout.contains("mass balance") && stdout.contains("station mid"), "{stdout}");
+    assert!(stdout.contains(out_dir.to_str().unwrap()), "{stdout}");
+
+    // exactly the three files, no temporaries left behind
+    let mut names: Vec<String> =
+        std::fs::read_dir(&out_dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    names.sort();
+    assert_eq!(names, ["probes.csv", "profiles.csv", "summary.json"]);
+
+    let probes = read(&out_dir.join("probes.csv"));
+    assert_eq!(probes.lines().next(), Some("time_s,station,x_m,quantity,value"));
+    let rows = probe_rows(&out_dir);
+    assert!(!rows.is_empty());
+    let mut stations = BTreeSet::new();
+    let mut quantities = BTreeSet::new();
+    let mut times = BTreeSet::new();
+    for row in &rows {
+        assert_eq!(row.len(), 5, "{row:?}");
+        let t: f64 = row[0].parse().unwrap();
+        assert_eq!(row[2].parse::<f64>().unwrap(), 6.0);
+        assert!(row[4].parse::<f64>().unwrap().is_finite(), "{row:?}");
+        times.insert(t.to_bits());
+        stations.insert(row[1].clone());
+        quantities.insert(row[3].clone());
+    }
+    assert_eq!(stations, BTreeSet::from(["mid".to_string()]));
+    assert_eq!(quantities, PROBE_QUANTITIES.iter().map(|q| q.to_string()).collect());
+    assert!(times.len() >= 2, "probe times: {}", times.len());
+
+    let profiles = read(&out_dir.join("profiles.csv"));
+    assert_eq!(profiles.lines().next(), Some("time_s,x_m,quantity,value"));
+    assert!(profiles.lines().skip(1).any(|l| l.split(',').nth(2) == Some("void_fraction")));
+    assert!(profiles.lines().skip(1).all(|l| l.split(',').count() == 4));
+
+    let s = summary(&out_dir);
+    for key in SUMMARY_KEYS {
+        assert!(s.get(key).is_some(), "summary.json has no '{key}': {s}");
+    }
+    assert!(s["steps"].as_u64().unwrap() > 0);
+    assert!((s["simulated_time_s"].as_f64().unwrap() - 0.1).abs() < 1e-9);
+    assert!(s["chilldown_time_s"].as_object().unwrap().contains_key("mid"));
+    assert_eq!(s["case"], case.as_str());
+    assert!(s["parameters"].as_object().unwrap().is_empty());
+}
+
+#[test]
+fn default_output_directory_is_out_and_the_case_stem() {
+    let tmp = Scratch::new("default-out");
+    tmp.write("quick.toml", &fast_faucet());
+    let out = cryofit_in(Some(&tmp.0), &["simulate", "quick.toml"]);
+    assert_success(&out);
+    for name in ["probes.csv", "profiles.csv", "summary.json"] {
+        assert!(tmp.path("out/quick").join(name).is_file(), "no out/quick/{name}");
+    }
+}
+
+#[test]
+fn noise_is_reproducible_and_touches_only_its_quantity() {
+    let tmp = Scratch::new("noise");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let run = |dir: &str, extra: &[&str]| -> PathBuf {
+        let out_dir = tmp.path(dir);
+        let mut args = vec!["simulate", case.as_str(), "--out", out_dir.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        assert_success(&cryofit(&args));
+        out_dir
+    };
+    let clean = run("clean", &[]);
+    let noisy = ["--noise", "wall_temperature_k=0.5", "--seed", "3"];
+    let a = run("a", &noisy);
+    let b = run("b", &noisy);
+    let other_seed = run("c", &["--noise", "wall_temperature_k=0.5", "--seed", "4"]);
+
+    assert_eq!(read(&a.join("probes.csv")), read(&b.join("probes.csv")), "same seed, different probes");
+    assert_eq!(read(&a.join("profiles.csv")), read(&clean.join("profiles.csv")), "profiles are never noisy");
+    assert_ne!(read(&a.join("probes.csv")), read(&other_seed.join("probes.csv")), "seed has no effect");
+
+    let (clean_rows, noisy_rows) = (probe_rows(&clean), probe_rows(&a));
+    assert_eq!(clean_rows.len(), noisy_rows.len());
+    let mut changed = 0;
+    for (c, n) in clean_rows.iter().zip(&noisy_rows) {
+        assert_eq!(c[..4], n[..4]);
+        if c[3] == "wall_temperature_k" {
+            let (vc, vn): (f64, f64) = (c[4].parse().unwrap(), n[4].parse().unwrap());
+            assert!((vn - vc).abs() < 5.0, "noise of σ = 0.5 moved {vc} to {vn}");
+            changed += usize::from(vc != vn);
+        } else {
+            assert_eq!(c, n, "only wall_temperature_k rows may change");
+        }
+    }
+    assert!(changed > 0, "no wall temperature changed");
+    let s = summary(&a);
+    assert_eq!(s["seed"], 3);
+    assert_eq!(s["noise"]["wall_temperature_k"], 0.5);
+}
+
+#[test]
+fn set_overrides_params_file_which_overrides_the_case() {
+    let tmp = Scratch::new("precedence");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let out_dir = tmp.path("set");
+    assert_success(&cryofit(&["simulate", &case, "--out", out_dir.to_str().unwrap(), "--set", "vm_coeff=0.7"]));
+    assert_eq!(summary(&out_dir)["parameters"], serde_json::json!({ "vm_coeff": 0.7 }));
+
+    let case =
+        tmp.write("with-params.toml", &format!("{}\n[parameters]\nvm_coeff = 0.6\nhi_vol = 5.0\n", fast_faucet()));
+    let params = tmp.write("params.toml", "# calibrated\nvm_coeff = 0.9\ndrag_coeff = 2\n");
+    let out_dir = tmp.path("all");
+    let out =
+        cryofit(&["simulate", &case, "--out", out_dir.to_str().unwrap(), "--params", &params, "--set", "vm_coeff=0.7"]);
+    assert_success(&out);
+    assert_eq!(
+        summary(&out_dir)["parameters"],
+        serde_json::json!({ "vm_coeff": 0.7, "drag_coeff": 2.0, "hi_vol": 5.0 })
+    );
+}
+
+#[test]
+fn bad_parameters_give_one_line_errors() {
+    let tmp = Scratch::new("bad-params");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let out_dir = tmp.path("never");
+    let base = ["simulate", case.as_str(), "--out", out_dir.to_str().unwrap()];
+    let with = |extra: &[&str]| -> Vec<String> { base.iter().chain(extra).map(|s| s.to_string()).collect() };
+
+    assert_one_line_error(&with(&["--set", "nosuch=1"]), &["nosuch"]);
+    assert_one_line_error(&with(&["--set", "vm_coeff=99"]), &["--set vm_coeff=99", "bounds"]);
+    assert_one_line_error(&with(&["--set", "abc"]), &["--set abc", "NAME=VALUE"]);
+    assert_one_line_error(&with(&["--set", "x=notanumber"]), &["--set x=notanumber", "not a number"]);
+
+    let unknown = tmp.write("unknown.toml", "vm_coeff = 0.7\nbogus_key = 1.0\n");
+    assert_one_line_error(&with(&["--params", &unknown]), &[&unknown, "bogus_key"]);
+    let nested = tmp.write("nested.toml", "[parameters]\nvm_coeff = 0.7\n");
+    assert_one_line_error(&with(&["--params", &nested]), &[&nested, "parameters"]);
+    let text = tmp.write("text.toml", "vm_coeff = \"high\"\n");
+    assert_one_line_error(&with(&["--params", &text]), &[&text, "vm_coeff", "number"]);
+    let broken = tmp.write("broken.toml", "vm_coeff = = 1\n");
+    assert_one_line_error(&with(&["--params", &broken]), &[&broken, "line 1"]);
+    let missing = tmp.path("missing.toml").to_str().unwrap().to_string();
+    assert_one_line_error(&with(&["--params", &missing]), &["cannot read", &missing]);
+
+    // the case's own [parameters] are checked too, naming the file and the field
+    let bad_case = tmp.write("bad.toml", &format!("{}\n[parameters]\nbogus = 1.0\n", fast_faucet()));
+    assert_one_line_error(
+        &["simulate", &bad_case, "--out", out_dir.to_str().unwrap()],
+        &[&bad_case, "parameters.bogus"],
+    );
+    assert!(!out_dir.exists(), "a failed command created its output directory");
+}
+
+#[test]
+fn bad_noise_gives_one_line_errors() {
+    let tmp = Scratch::new("bad-noise");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let out_dir = tmp.path("never");
+    let base = ["simulate", case.as_str(), "--out", out_dir.to_str().unwrap()];
+    let with = |extra: &[&str]| -> Vec<String> { base.iter().chain(extra).map(|s| s.to_string()).collect() };
+    assert_one_line_error(&with(&["--noise", "colour=1"]), &["colour", "wall_temperature_k", "mass_flow_kg_s"]);
+    assert_one_line_error(&with(&["--noise", "wall_temperature_k=-0.5"]), &["wall_temperature_k=-0.5"]);
+    assert_one_line_error(&with(&["--noise", "wall_temperature_k=inf"]), &["wall_temperature_k=inf"]);
+    assert_one_line_error(&with(&["--noise", "wall_temperature_k"]), &["QUANTITY=SIGMA"]);
+    assert_one_line_error(&with(&["--seed", "many"]), &["--seed"]);
+    assert!(!out_dir.exists());
+}
+
+#[test]
+fn bad_case_files_give_one_line_errors() {
+    let tmp = Scratch::new("bad-case");
+    let good = fast_faucet();
+    let out_dir = tmp.path("never");
+    let check = |name: &str, text: &str, needles: &[&str]| {
+        assert_ne!(text, good, "{name}: the edit did not apply");
+        let case = tmp.write(name, text);
+        let mut all = vec![case.as_str()];
+        all.extend_from_slice(needles);
+        assert_one_line_error(&["simulate", &case, "--out", out_dir.to_str().unwrap()], &all);
+    };
+    check("colour.toml", &good.replace("[pipe]\n", "[pipe]\ncolour = 1\n"), &["colour"]);
+    check("negative.toml", &good.replace("length_m = 12.0", "length_m = -12.0"), &["pipe.length_m"]);
+    check("no-ambient.toml", &good.replace("[ambient]\ntemperature_k = 80.0\n", ""), &["ambient"]);
+    check("helium.toml", &good.replace("name = \"nitrogen\"", "name = \"helium\""), &["fluid.name", "helium"]);
+    let missing = tmp.path("missing.toml");
+    assert_one_line_error(
+        &["simulate", missing.to_str().unwrap(), "--out", out_dir.to_str().unwrap()],
+        &["cannot read", missing.to_str().unwrap()],
+    );
+    assert!(!out_dir.exists());
+}
+
+#[test]
+fn failed_run_writes_nothing() {
+    let tmp = Scratch::new("failed-run");
+    let case = tmp.write("stops.toml", &fast_faucet().replace("[time]\n", "[time]\nmax_steps = 1\n"));
+    let fresh = tmp.path("fresh");
+    assert_one_line_error(&["simulate", &case, "--out", fresh.to_str().unwrap()], &[&case, "max_steps"]);
+    assert!(!fresh.exists(), "a failed run created its output directory");
+    // earlier results in the output directory are left as they were
+    let old = tmp.path("old");
+    std::fs::create_dir_all(&old).unwrap();
+    std::fs::write(old.join("probes.csv"), "earlier\n").unwrap();
+    assert_one_line_error(&["simulate", &case, "--out", old.to_str().unwrap()], &["max_steps"]);
+    assert_eq!(read(&old.join("probes.csv")), "earlier\n");
+    assert_eq!(std::fs::read_dir(&old).unwrap().count(), 1);
+}
+
+#[test]
+fn params_lists_the_registry() {
+    let out = cryofit(&["params", "--json"]);
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let list = v.as_array().expect("a JSON list");
+    assert!(!list.is_empty());
+    let want: BTreeSet<&str> = ["name", "group", "default", "lower", "upper", "unit", "description"].into();
+    for p in list {
+        let keys: BTreeSet<&str> = p.as_object().unwrap().keys().map(String::as_str).collect();
+        assert_eq!(keys, want, "{p}");
+        let (d, lo, hi) = (p["default"].as_f64().unwrap(), p["lower"].as_f64().unwrap(), p["upper"].as_f64().unwrap());
+        assert!(lo <= d && d <= hi, "{p}");
+    }
+    let vm = list.iter().find(|p| p["name"] == "vm_coeff").expect("vm_coeff is listed");
+    assert!(vm["group"].is_string() && vm["unit"].is_string() && vm["description"].is_string());
+
+    let out = cryofit(&["params"]);
+    assert_success(&out);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split_whitespace().collect();
+    assert_eq!(header, ["NAME", "GROUP", "DEFAULT", "LOWER", "UPPER", "UNIT", "DESCRIPTION"]);
+    assert_eq!(lines.count(), list.len());
+    assert!(text.lines().any(|l| l.starts_with("vm_coeff ")), "{text}");
+}
