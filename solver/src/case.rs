@@ -94,6 +94,14 @@ impl Profile {
         }
     }
 
+    /// Smallest value of the profile.
+    pub fn min(&self) -> f64 {
+        match self {
+            Profile::Constant(v) => *v,
+            Profile::Table(p) => p.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min),
+        }
+    }
+
     /// Largest value of the profile.
     pub fn max(&self) -> f64 {
         match self {
@@ -117,8 +125,9 @@ pub struct FluidSection {
 pub struct PipeSection {
     /// Pipe length, m.
     pub length_m: f64,
-    /// Inner diameter, m.
-    pub inner_diameter_m: f64,
+    /// Inner diameter, m: a number, or `[[x_m, metres], ...]` read as piecewise constant from
+    /// each point on (a contraction or expansion at a point).
+    pub inner_diameter_m: Profile,
     /// Wall thickness, m.
     pub wall_thickness_m: f64,
     /// Wall material: `copper` or `stainless304`.
@@ -361,9 +370,10 @@ impl Case {
         }
         let p = &self.pipe;
         positive("pipe.length_m", p.length_m)?;
-        positive("pipe.inner_diameter_m", p.inner_diameter_m)?;
+        p.inner_diameter_m.validate("pipe.inner_diameter_m", 1e-6, 100.0, "must be a diameter in m (positive)")?;
+        let d_min = p.inner_diameter_m.min();
         positive("pipe.wall_thickness_m", p.wall_thickness_m)?;
-        if !(p.roughness_m.is_finite() && p.roughness_m >= 0.0 && p.roughness_m < p.inner_diameter_m) {
+        if !(p.roughness_m.is_finite() && p.roughness_m >= 0.0 && p.roughness_m < d_min) {
             return Err(format!("pipe.roughness_m = {}: must be ≥ 0 and smaller than the diameter", p.roughness_m));
         }
         if WallMaterial::from_name(&p.wall_material).is_none() {

@@ -29,10 +29,10 @@ pub struct Grid {
     pub area_junction: Vec<f64>,
     /// Cell volumes, m³.
     pub volume: Vec<f64>,
-    /// Hydraulic diameter, m.
-    pub d_h: f64,
-    /// Inner perimeter, m.
-    pub perimeter: f64,
+    /// Hydraulic (inner) diameter of each cell, m.
+    pub d_h: Vec<f64>,
+    /// Inner perimeter of each cell, m.
+    pub perimeter: Vec<f64>,
     /// Sine of the inclination of each cell (flow direction, positive upwards).
     pub sin_cell: Vec<f64>,
     /// Sine of the inclination at each junction (mean of the neighbouring cells).
@@ -43,22 +43,30 @@ pub struct Grid {
     pub outer_area: Vec<f64>,
     /// Wall material.
     pub material: WallMaterial,
-    /// Relative roughness ε/D.
-    pub relative_roughness: f64,
+    /// Relative roughness ε/D of each cell.
+    pub relative_roughness: Vec<f64>,
 }
 
 impl Grid {
-    /// Builds a uniform grid from a case.
+    /// Builds a grid of equal cells from a case. The diameter may change from cell to cell; a
+    /// junction between cells of different area takes the smaller area (the throat).
     pub fn from_case(case: &Case) -> Self {
         let p = &case.pipe;
         let n = p.cells;
         let dx = p.length_m / n as f64;
-        let d = p.inner_diameter_m;
-        let area = std::f64::consts::PI * d * d / 4.0;
-        let d_out = d + 2.0 * p.wall_thickness_m;
-        let wall_area = std::f64::consts::PI * (d_out * d_out - d * d) / 4.0;
         let material = case.wall_material();
         let x_cell: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) * dx).collect();
+        let d: Vec<f64> = x_cell.iter().map(|&x| p.inner_diameter_m.step_at(x)).collect();
+        let area_cell: Vec<f64> = d.iter().map(|d| std::f64::consts::PI * d * d / 4.0).collect();
+        let area_junction: Vec<f64> =
+            (0..=n).map(|j| area_cell[j.saturating_sub(1)].min(area_cell[j.min(n - 1)])).collect();
+        let wall_mass = d
+            .iter()
+            .map(|d| {
+                let d_out = d + 2.0 * p.wall_thickness_m;
+                material.density_kg_m3() * std::f64::consts::PI * (d_out * d_out - d * d) / 4.0 * dx
+            })
+            .collect();
         let sin_cell: Vec<f64> = x_cell.iter().map(|&x| p.inclination_deg.step_at(x).to_radians().sin()).collect();
         let sin_junction = (0..=n)
             .map(|j| {
@@ -70,20 +78,25 @@ impl Grid {
         Self {
             n,
             dx: vec![dx; n],
-            x_cell,
             x_junction: (0..=n).map(|j| j as f64 * dx).collect(),
-            area_cell: vec![area; n],
-            area_junction: vec![area; n + 1],
-            volume: vec![area * dx; n],
+            volume: area_cell.iter().map(|a| a * dx).collect(),
+            area_cell,
+            area_junction,
+            perimeter: d.iter().map(|d| std::f64::consts::PI * d).collect(),
+            outer_area: d.iter().map(|d| std::f64::consts::PI * (d + 2.0 * p.wall_thickness_m) * dx).collect(),
+            relative_roughness: d.iter().map(|d| p.roughness_m / d).collect(),
             d_h: d,
-            perimeter: std::f64::consts::PI * d,
+            x_cell,
             sin_cell,
             sin_junction,
-            wall_mass: vec![material.density_kg_m3() * wall_area * dx; n],
-            outer_area: vec![std::f64::consts::PI * d_out * dx; n],
+            wall_mass,
             material,
-            relative_roughness: p.roughness_m / d,
         }
+    }
+
+    /// Hydraulic diameter at junction `j` (mean of the neighbouring cells), m.
+    pub fn d_h_junction(&self, j: usize) -> f64 {
+        0.5 * (self.d_h[j.saturating_sub(1)] + self.d_h[j.min(self.n - 1)])
     }
 
     /// Length of the momentum control volume around junction `j`, m.

@@ -346,19 +346,26 @@ impl<'a> Scheme<'a> {
             // Implicit donor-cell convection v^n (v_j − v_up)^{n+1} / dx. Out of a reservoir the
             // fluid starts from rest, and the jump from 0 to v is given its Bernoulli value
             // ½ ρ v² (the donor-cell form would give ρ v²).
+            // Where the flow area changes between two junctions, the velocity jump is the
+            // area ratio and ½ (v_j + v_up) (v_j − v_up) is the Bernoulli ½ Δ(v²) exactly.
             for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
                 let coef = ar * v.abs() / dxj;
+                let old_v = |jj: usize| if k == 0 { s.v_g[jj] } else { s.v_l[jj] };
+                let bernoulli = |v_up: f64| ar * (0.5 * (v + v_up)).abs() / dxj;
                 if v >= 0.0 {
                     if j > 0 {
-                        diag[(k, k)] += coef;
-                        w.lower[j][(k, k)] -= coef;
+                        let c =
+                            if g.area_junction[j - 1] != g.area_junction[j] { bernoulli(old_v(j - 1)) } else { coef };
+                        diag[(k, k)] += c;
+                        w.lower[j][(k, k)] -= c;
                     } else if inlet0.kind == BoundaryKind::Reservoir {
                         diag[(k, k)] += 0.5 * coef;
                     }
                     // other inlets carry the junction's own velocity: no convective acceleration
                 } else if j < n {
-                    diag[(k, k)] += coef;
-                    w.upper[j][(k, k)] -= coef;
+                    let c = if g.area_junction[j + 1] != g.area_junction[j] { bernoulli(old_v(j + 1)) } else { coef };
+                    diag[(k, k)] += c;
+                    w.upper[j][(k, k)] -= c;
                 } else if outlet0.kind == BoundaryKind::Reservoir {
                     diag[(k, k)] += 0.5 * coef;
                 }
@@ -637,7 +644,7 @@ impl<'a> Scheme<'a> {
             let q_wall = src.q_wall.eval(x) * v * dt;
             let q_amb = src.q_amb.eval(x) * v * dt;
             budget.wall_heat += q_wall;
-            next.wall_heat_flux[i] = q_wall / (dt * g.perimeter * g.dx[i]);
+            next.wall_heat_flux[i] = q_wall / (dt * g.perimeter[i] * g.dx[i]);
             budget.ambient_heat += q_amb;
             next.e_w[i] = s.e_w[i] + (q_amb - q_wall) / g.wall_mass[i];
             next.t_w[i] = g.material.temperature_from_energy(next.e_w[i]);
@@ -939,13 +946,14 @@ impl<'a> Scheme<'a> {
         let ar_g = a_g * js.rho_g;
         let ar_l = a_l * js.rho_l;
         let (vg, vl) = (s.v_g[j], s.v_l[j]);
-        let d = g.d_h;
+        let d = g.d_h_junction(j);
+        let rough = 0.5 * (g.relative_roughness[j.saturating_sub(1)] + g.relative_roughness[j.min(n - 1)]);
         let fric = |a: f64, rho: f64, mu: f64, v: f64| -> f64 {
             if !ph.wall_friction || a <= 0.0 {
                 return 0.0;
             }
             let re = rho * v.abs() * d / mu.max(1e-12);
-            let f = churchill_darcy(re, g.relative_roughness);
+            let f = churchill_darcy(re, rough);
             a * f * rho * v.abs() / (2.0 * d)
         };
         let mut fric_g = fric(a_g, js.rho_g, js.mu_g, vg);
@@ -1010,12 +1018,12 @@ impl<'a> Scheme<'a> {
         let tg = Lin::var(s.t_g[i], 2);
         let tl = Lin::var(s.t_l[i], 3);
         // wall heat transfer coefficients per unit fluid volume
-        let per_vol = g.perimeter / g.area_cell[i];
+        let per_vol = g.perimeter[i] / g.area_cell[i];
         let (hw_g, hw_l) = if ph.wall_heat_transfer {
             match ph.fixed_wall_htc {
                 Some(h) => (h * per_vol * a, h * per_vol * b),
                 None => {
-                    let d = g.d_h;
+                    let d = g.d_h[i];
                     let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
                     let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
                     let h = |pr: &PhaseProps, v: f64| {

@@ -137,7 +137,7 @@ fn gas_cools_the_wall_as_schumann_predicts() {
     let g = Grid::from_case(&case);
     let gas = fluid.phase_props(Phase::Gas, 1.0e5, 201.0).unwrap();
     let c_w = g.wall_mass[0] / g.dx[0] * g.material.specific_heat_j_kg_k(201.0);
-    let h = case.physics.wall_htc_w_m2k.unwrap() * g.perimeter;
+    let h = case.physics.wall_htc_w_m2k.unwrap() * g.perimeter[0];
     let ex = Schumann::new(gas.rho * gas.cp * g.area_cell[0], c_w, h, 1.0, 200.0, 202.0);
     let mut worst: f64 = 0.0;
     for p in out.profiles.iter().filter(|p| p.time_s > 0.0) {
@@ -166,9 +166,9 @@ fn reservoir_flow_reaches_bernoulli_with_losses() {
     let mu = s.liquid[g.n / 2].mu;
     let v = s.v_l[g.n / 2];
     // p_res − p_out = ρ v²/2 (1 + K + f L/D), f from Churchill at the flow's Reynolds number
-    let re = rho * v * g.d_h / mu;
+    let re = rho * v * g.d_h[0] / mu;
     let f = cryofit_solver::closures::churchill_darcy(re, 0.0);
-    let predicted = 0.5 * rho * v * v * (1.0 + 2.0 + f * case.pipe.length_m / g.d_h);
+    let predicted = 0.5 * rho * v * v * (1.0 + 2.0 + f * case.pipe.length_m / g.d_h[0]);
     println!("reservoir: v = {v:.4} m/s, Re = {re:.0}, f = {f:.5}, Δp predicted {predicted:.0} Pa of 50000");
     assert!((predicted / 5.0e4 - 1.0).abs() < 0.02, "steady flow {v} m/s implies Δp {predicted}");
     // steady: the same velocity everywhere, liquid only
@@ -239,4 +239,38 @@ fn boundary_time_tables_drive_the_run() {
     };
     assert!(v_at(0.1).abs() < 0.2, "{}", v_at(0.1));
     assert!(v_at(1.0) > 0.5 && v_at(1.0) < v_at(5.0), "{} {}", v_at(1.0), v_at(5.0));
+}
+
+#[test]
+fn contraction_follows_bernoulli() {
+    // frictionless liquid from a 1.5 bar reservoir through a 20 mm pipe that narrows to 14 mm at
+    // x = 5 m, into 1 bar: ½ ρ v_out² = Δp, v_in = v_out (A_out / A_in), and upstream of the
+    // throat p = p_res − ½ ρ v_in²
+    let text = Reference::LiquidReservoir
+        .text()
+        .replace("inner_diameter_m = 0.02", "inner_diameter_m = [[0.0, 0.02], [5.0, 0.014]]")
+        .replace("loss_coefficient = 2.0", "loss_coefficient = 0.0")
+        .replace("wall_friction = true", "")
+        .replace("[physics]", "[physics]\nwall_friction = false");
+    let case = cryofit_solver::case::Case::from_toml(&text, "contraction.toml").unwrap();
+    let out = run(&case);
+    let g = Grid::from_case(&case);
+    let s = &out.final_state;
+    let rho = s.liquid[g.n - 1].rho;
+    let v_out = (2.0 * 5.0e4 / rho).sqrt();
+    let v_in = v_out * (0.014f64 / 0.02).powi(2);
+    let (j_in, j_out) = (g.n / 4, 3 * g.n / 4);
+    let p_up = 1.5e5 - 0.5 * rho * v_in * v_in;
+    println!(
+        "contraction: v_in {:.3} (Bernoulli {v_in:.3}), v_out {:.3} ({v_out:.3}), p upstream {:.0} ({p_up:.0}) Pa",
+        s.v_l[j_in],
+        s.v_l[j_out],
+        s.p[g.n / 4]
+    );
+    assert!((s.v_l[j_out] / v_out - 1.0).abs() < 0.03, "outlet velocity {}", s.v_l[j_out]);
+    assert!((s.v_l[j_in] / v_in - 1.0).abs() < 0.03, "inlet velocity {}", s.v_l[j_in]);
+    assert!(((s.p[g.n / 4] - 1.0e5) / (p_up - 1.0e5) - 1.0).abs() < 0.03, "upstream pressure {}", s.p[g.n / 4]);
+    // mass flow is the same on both sides of the throat (steady state)
+    let flow = |j: usize| s.liquid[j].rho * s.v_l[j] * g.area_junction[j];
+    assert!((flow(j_in) / flow(j_out) - 1.0).abs() < 1e-4, "{} vs {}", flow(j_in), flow(j_out));
 }
