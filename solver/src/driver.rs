@@ -227,7 +227,7 @@ pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<Sta
         s.liquid.push(lp);
         let tw = ini.wall_temperature_k.at(x);
         s.t_w[i] = tw;
-        s.e_w[i] = grid.material.specific_energy_j_kg(tw);
+        s.e_w[i] = grid.material.table().energy(tw);
     }
     Ok(s)
 }

@@ -472,11 +472,14 @@ impl<'a> Scheme<'a> {
             }
             // An absent phase has no energy equation: its temperature follows the other phase
             // (within its own table), so that it enters well defined if it flows in.
-            for (present, row, col, target) in [
-                (s.m_g[i] > 0.0, 2usize, 2usize, clamp_to_phase(fluid, Phase::Gas, s.p[i], s.t_l[i]) - s.t_g[i]),
-                (s.m_l[i] > 0.0, 3, 3, clamp_to_phase(fluid, Phase::Liquid, s.p[i], s.t_g[i]) - s.t_l[i]),
-            ] {
+            for (present, row, col, phase) in
+                [(s.m_g[i] > 0.0, 2usize, 2usize, Phase::Gas), (s.m_l[i] > 0.0, 3, 3, Phase::Liquid)]
+            {
                 if !present {
+                    let target = match phase {
+                        Phase::Gas => clamp_to_phase(fluid, Phase::Gas, s.p[i], s.t_l[i]) - s.t_g[i],
+                        Phase::Liquid => clamp_to_phase(fluid, Phase::Liquid, s.p[i], s.t_g[i]) - s.t_l[i],
+                    };
                     for k in 0..4 {
                         m[(row, k)] = 0.0;
                     }
@@ -647,7 +650,7 @@ impl<'a> Scheme<'a> {
             next.wall_heat_flux[i] = q_wall / (dt * g.perimeter[i] * g.dx[i]);
             budget.ambient_heat += q_amb;
             next.e_w[i] = s.e_w[i] + (q_amb - q_wall) / g.wall_mass[i];
-            next.t_w[i] = g.material.temperature_from_energy(next.e_w[i]);
+            next.t_w[i] = g.material.table().temperature(next.e_w[i]);
         }
 
         // ---- new thermodynamic state from the conserved variables ----
@@ -702,7 +705,12 @@ impl<'a> Scheme<'a> {
                 if m <= tiny {
                     return reset(budget);
                 }
-                let trace_frac = m / fluid.phase_props(phase, p, target).map(|pr| pr.rho).unwrap_or(f64::INFINITY);
+                // the phase's volume fraction, estimated with its old density
+                let old_rho = match phase {
+                    Phase::Gas => s.gas[i].rho,
+                    Phase::Liquid => s.liquid[i].rho,
+                };
+                let trace_frac = m / old_rho;
                 if trace_frac < ph.blend_min {
                     return reset(budget);
                 }
@@ -1039,7 +1047,7 @@ impl<'a> Scheme<'a> {
         let hw_g = if gas_here { hw_g } else { 0.0 };
         let hw_l = if liq_here { hw_l } else { 0.0 };
         let h_amb = ph.ambient_htc_w_m2k * g.outer_area[i] / v;
-        let c_w = g.wall_mass[i] * g.material.specific_heat_j_kg_k(s.t_w[i]) / v;
+        let c_w = g.wall_mass[i] * g.material.table().cp(s.t_w[i]) / v;
         let tw = s.t_w[i];
         let den = c_w / dt + hw_g + hw_l + h_amb;
         let a0 = (-hw_g * (tw - s.t_g[i]) - hw_l * (tw - s.t_l[i]) + h_amb * (ph.ambient_temperature_k - tw)) / den;
