@@ -1,5 +1,6 @@
 //! `cryofit`: the one binary users run. Parses the command line and hands over to a command.
 
+mod bench;
 mod fluid_source;
 mod params_cmd;
 mod props;
@@ -29,6 +30,9 @@ enum Command {
     Simulate(simulate::SimulateArgs),
     /// List the model parameters: name, group, default, bounds, unit and meaning.
     Params(params_cmd::ParamsArgs),
+    /// Measurements too heavy for the test suite (robustness over the parameter space).
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +62,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Props(args) => props::run(&args),
+        Command::Bench(cmd) => bench::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
         Command::Params(args) => params_cmd::run(&args),
     };
