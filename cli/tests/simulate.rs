@@ -228,15 +228,12 @@ fn set_overrides_params_file_which_overrides_the_case() {
 
     let case =
         tmp.write("with-params.toml", &format!("{}\n[parameters]\nvm_coeff = 0.6\nhi_vol = 5.0\n", fast_faucet()));
-    let params = tmp.write("params.toml", "# calibrated\nvm_coeff = 0.9\ndrag_coeff = 2\n");
+    let params = tmp.write("params.toml", "# calibrated\nvm_coeff = 0.9\nfwsc = 2\n");
     let out_dir = tmp.path("all");
     let out =
         cryofit(&["simulate", &case, "--out", out_dir.to_str().unwrap(), "--params", &params, "--set", "vm_coeff=0.7"]);
     assert_success(&out);
-    assert_eq!(
-        summary(&out_dir)["parameters"],
-        serde_json::json!({ "vm_coeff": 0.7, "drag_coeff": 2.0, "hi_vol": 5.0 })
-    );
+    assert_eq!(summary(&out_dir)["parameters"], serde_json::json!({ "vm_coeff": 0.7, "fwsc": 2.0, "hi_vol": 5.0 }));
 }
 
 #[test]

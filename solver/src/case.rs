@@ -297,6 +297,10 @@ pub struct PhysicsSection {
     /// A fixed wall-to-fluid heat transfer coefficient, W/(m² K), replacing the correlations
     /// (for verification against exact solutions).
     pub wall_htc_w_m2k: Option<f64>,
+    /// Film-boiling / rewet correlation set: `paper` (Bromley with the Iloeje corrections,
+    /// Berenson–Iloeje minimum film boiling) or `miropolskii` (Miropolskii film boiling with a
+    /// Darr–Hartwig wetting temperature).
+    pub correlations: String,
 }
 
 impl Default for PhysicsSection {
@@ -310,6 +314,7 @@ impl Default for PhysicsSection {
             gravity: true,
             virtual_mass: true,
             wall_htc_w_m2k: None,
+            correlations: "paper".to_string(),
         }
     }
 }
@@ -441,6 +446,12 @@ impl Case {
             if !v.is_finite() {
                 return Err(format!("parameters.{name} = {v}: must be a finite number"));
             }
+        }
+        if self.physics.correlations.parse::<crate::cryo::CorrelationSet>().is_err() {
+            return Err(format!(
+                "physics.correlations = \"{}\": unknown correlation set; use paper or miropolskii",
+                self.physics.correlations
+            ));
         }
         if let Some(h) = self.physics.wall_htc_w_m2k
             && !(h.is_finite() && h >= 0.0)

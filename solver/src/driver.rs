@@ -145,11 +145,12 @@ pub struct Progress {
 
 /// Physics settings of a case with the given parameter values (already merged with the case's
 /// `[parameters]` by the caller, see [`case_parameters`]).
-pub fn physics_of(case: &Case, params: &ParameterSet) -> Physics {
+pub fn physics_of(case: &Case, params: &ParameterSet, fluid: &FluidTable) -> Physics {
     let p = &case.physics;
     Physics {
+        cryo: crate::cryo::CryoParams::from_set(params).with_fluid(fluid.constants()),
+        correlations: p.correlations.parse().unwrap_or(crate::cryo::CorrelationSet::Paper),
         virtual_mass_coefficient: params.get("vm_coeff"),
-        drag_coefficient: params.get("drag_coeff"),
         interphase_htc_w_m3k: params.get("hi_vol"),
         blend_min: params.get("blend_xmin"),
         blend_max: params.get("blend_xmax"),
@@ -197,6 +198,8 @@ pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<Sta
         t_w: vec![0.0; n],
         e_w: vec![0.0; n],
         wall_heat_flux: vec![0.0; n],
+        wetted: vec![0.0; n],
+        sat: Vec::with_capacity(n),
     };
     for i in 0..n {
         let x = grid.x_cell[i];
@@ -228,6 +231,9 @@ pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<Sta
         let tw = ini.wall_temperature_k.at(x);
         s.t_w[i] = tw;
         s.e_w[i] = grid.material.table().energy(tw);
+        s.sat.push(crate::scheme::saturation_or_none(fluid, p));
+        // liquid present at the start wets the wall
+        s.wetted[i] = if a < 1.0 { 1.0 } else { 0.0 };
     }
     Ok(s)
 }
@@ -249,7 +255,7 @@ pub fn run(
 ) -> Result<Output, SimError> {
     let grid = Grid::from_case(case);
     let state = initial_state(case, fluid, &grid)?;
-    let physics = physics_of(case, params);
+    let physics = physics_of(case, params, fluid);
     let mut scheme = Scheme::new(fluid, grid.clone(), physics);
     let t = &case.time;
     let n = grid.n;

@@ -8,6 +8,7 @@
 
 pub mod case;
 pub mod closures;
+pub mod cryo;
 pub mod driver;
 pub mod exact;
 pub mod fluids;

@@ -240,4 +240,9 @@ pub struct State {
     pub e_w: Vec<f64>,
     /// Heat flux from the wall into the fluid over the last step, W/m² of inner wall.
     pub wall_heat_flux: Vec<f64>,
+    /// Fraction of the inner wall perimeter wetted by liquid (relaxes to the flow regime's value
+    /// with the time constant `tauw`).
+    pub wetted: Vec<f64>,
+    /// Saturation properties at the cell pressure (zeros where there is no saturation line).
+    pub sat: Vec<crate::fluids::Saturation>,
 }

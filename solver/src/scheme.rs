@@ -36,8 +36,9 @@
 use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
 
 use crate::case::BoundaryKind;
-use crate::closures::{churchill_darcy, forced_convection_htc, presence};
-use crate::fluids::{FluidTable, Phase, PhaseProps};
+use crate::closures::presence;
+use crate::cryo;
+use crate::fluids::{FluidTable, Phase, PhaseProps, Saturation};
 use crate::linalg;
 use crate::model::{BoundaryState, GRAVITY, Grid, State, clamp_to_phase};
 
@@ -62,8 +63,6 @@ pub struct Physics {
     pub fixed_wall_htc: Option<f64>,
     /// Virtual-mass coefficient C in C α β ρ_m ∂(v_g − v_l)/∂t.
     pub virtual_mass_coefficient: f64,
-    /// Interfacial drag: F_i = c α (1 − α) ρ_m |v_r| / D_h.
-    pub drag_coefficient: f64,
     /// Volumetric interphase heat transfer coefficient scale, W/(m³ K), times α(1 − α).
     pub interphase_htc_w_m3k: f64,
     /// Lower phase-blending threshold (void fraction of the disappearing phase).
@@ -74,6 +73,10 @@ pub struct Physics {
     pub ambient_temperature_k: f64,
     /// Ambient heat transfer coefficient on the outer wall, W/(m² K).
     pub ambient_htc_w_m2k: f64,
+    /// The cryogenic closure constants (from the parameter registry).
+    pub cryo: cryo::CryoParams,
+    /// Which film-boiling / rewet correlation set.
+    pub correlations: cryo::CorrelationSet,
 }
 
 impl Default for Physics {
@@ -88,12 +91,13 @@ impl Default for Physics {
             virtual_mass: true,
             fixed_wall_htc: None,
             virtual_mass_coefficient: 0.5,
-            drag_coefficient: 1.0,
             interphase_htc_w_m3k: 1.0e5,
             blend_min: 1e-7,
             blend_max: 1e-2,
             ambient_temperature_k: 290.0,
             ambient_htc_w_m2k: 0.0,
+            cryo: cryo::CryoParams::default(),
+            correlations: cryo::CorrelationSet::Paper,
         }
     }
 }
@@ -221,6 +225,7 @@ struct Sources {
 /// Reusable work arrays of the scheme.
 #[derive(Debug, Clone, Default)]
 struct Work {
+    wetted: Vec<f64>,
     diss_g: Vec<f64>,
     diss_l: Vec<f64>,
     vt_g: Vec<f64>,
@@ -410,8 +415,9 @@ impl<'a> Scheme<'a> {
             let (gp, lp) = (&s.gas[i], &s.liquid[i]);
             let a = s.alpha[i];
             let b = 1.0 - a;
-            let src = self.sources(s, i, dt);
+            let (src, wetted) = self.sources(s, i, dt);
             w.sources[i] = src;
+            w.wetted[i] = wetted;
             let mut m = Matrix4::zeros();
             let mut r = Vector4::zeros();
             let mut cl = Vector4::zeros();
@@ -429,11 +435,18 @@ impl<'a> Scheme<'a> {
             m[(3, 0)] = b * (lp.u * lp.drho_dp + lp.rho * lp.du_dp);
             m[(3, 1)] = -lp.rho * lp.h;
             m[(3, 3)] = b * (lp.u * lp.drho_dt + lp.rho * lp.du_dt);
-            // old-time residuals (the volume-error correction)
-            r[0] = s.m_g[i] - a * gp.rho;
-            r[1] = s.m_l[i] - b * lp.rho;
-            r[2] = s.e_g[i] - a * gp.rho * gp.u;
-            r[3] = s.e_l[i] - b * lp.rho * lp.u;
+            // Old-time residuals: the volume-error correction. In a cell nearly full of liquid a
+            // small volume error is a large pressure change (liquid is stiff), so at most the
+            // part of the error worth VOLUME_ERROR_PRESSURE_FRACTION of the pressure is corrected
+            // per step; the rest is corrected over the following steps.
+            let kappa = a * gp.drho_dp / gp.rho + b * lp.drho_dp / lp.rho;
+            let implied = s.volume_error[i].abs() / kappa.max(1e-300);
+            let limit = VOLUME_ERROR_PRESSURE_FRACTION * s.p[i].max(SCALE_PRESSURE_PA);
+            let lambda = if implied > limit { limit / implied } else { 1.0 };
+            r[0] = lambda * (s.m_g[i] - a * gp.rho);
+            r[1] = lambda * (s.m_l[i] - b * lp.rho);
+            r[2] = lambda * (s.e_g[i] - a * gp.rho * gp.u);
+            r[3] = lambda * (s.e_l[i] - b * lp.rho * lp.u);
             // frictional dissipation (from the old velocities; step 2 adds the same heat)
             r[2] += dt * self.dissipation_share(&w.diss_g, i) / v;
             r[3] += dt * self.dissipation_share(&w.diss_l, i) / v;
@@ -639,6 +652,7 @@ impl<'a> Scheme<'a> {
             }
         }
 
+        next.wetted.copy_from_slice(&w.wetted);
         // wall energy and heat budgets
         for i in 0..n {
             let src = &w.sources[i];
@@ -660,6 +674,15 @@ impl<'a> Scheme<'a> {
             let p = s.p[i] + w.x[i][0];
             if !(p.is_finite() && p > 0.0) {
                 return Err(Rejection { cell: i, variable: "pressure", value: p, reason: "non-physical pressure" });
+            }
+            let c = fluid.constants();
+            if !(p >= c.p_min_pa && p <= c.p_max_pa) {
+                return Err(Rejection {
+                    cell: i,
+                    variable: "pressure",
+                    value: p,
+                    reason: "outside the property table's pressure range",
+                });
             }
             next.p[i] = p;
             let total = next.m_g[i] + next.m_l[i];
@@ -752,6 +775,7 @@ impl<'a> Scheme<'a> {
             next.gas[i] = gp;
             next.liquid[i] = lp;
             next.volume_error[i] = verr;
+            next.sat[i] = saturation_or_none(fluid, p);
         }
         // total-energy boundary flux: enthalpy, kinetic and potential energy carried by the
         // boundary mass fluxes (donor properties)
@@ -954,18 +978,28 @@ impl<'a> Scheme<'a> {
         let ar_g = a_g * js.rho_g;
         let ar_l = a_l * js.rho_l;
         let (vg, vl) = (s.v_g[j], s.v_l[j]);
-        let d = g.d_h_junction(j);
-        let rough = 0.5 * (g.relative_roughness[j.saturating_sub(1)] + g.relative_roughness[j.min(n - 1)]);
-        let fric = |a: f64, rho: f64, mu: f64, v: f64| -> f64 {
-            if !ph.wall_friction || a <= 0.0 {
-                return 0.0;
-            }
-            let re = rho * v.abs() * d / mu.max(1e-12);
-            let f = churchill_darcy(re, rough);
-            a * f * rho * v.abs() / (2.0 * d)
+        // the closures see the junction through its donor cell, with the junction's velocities
+        let donor = if j == 0 {
+            0
+        } else if j == n {
+            n - 1
+        } else if a_g * vg + a_l * vl >= 0.0 {
+            j - 1
+        } else {
+            j
         };
-        let mut fric_g = fric(a_g, js.rho_g, js.mu_g, vg);
-        let mut fric_l = fric(a_l, js.rho_l, js.mu_l, vl);
+        let mut local = self.local(s, donor);
+        local.v_g = vg;
+        local.v_l = vl;
+        local.alpha = a_g;
+        local.d_h = g.d_h_junction(j);
+        let cp = &ph.cryo;
+        let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[donor]);
+        let rough = 0.5 * (g.relative_roughness[j.saturating_sub(1)] + g.relative_roughness[j.min(n - 1)]);
+        let (f_g, f_l) = if ph.wall_friction { cryo::wall_friction(&local, cp, &regime, rough) } else { (0.0, 0.0) };
+        let fric = |f: f64, a: f64| if a > 0.0 { f } else { 0.0 };
+        let mut fric_g = fric(f_g, a_g);
+        let mut fric_l = fric(f_l, a_l);
         // form loss (valve / entrance) at a boundary junction: K ρ |v| / (2 dx), the valve
         // closing the area scales K with 1/open²
         let bnd = if j == 0 {
@@ -983,8 +1017,7 @@ impl<'a> Scheme<'a> {
             fric_l += k * ar_l * vl.abs() / (2.0 * dxj);
         }
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
-        let vr = (vg - vl).abs();
-        let drag_physical = if ph.interphase_drag { ph.drag_coefficient * a_g * a_l * rho_m * vr / d } else { 0.0 };
+        let drag_physical = if ph.interphase_drag { cryo::interfacial_drag(&local, cp, &regime) } else { 0.0 };
         let mut drag = drag_physical;
         // A disappearing phase is tied to the continuous one (phase blending, paper eq.
         // "smoother"). At a junction a phase counts as disappearing when either neighbouring
@@ -993,7 +1026,7 @@ impl<'a> Scheme<'a> {
         let (side_g, side_l) = self.junction_min_fractions(s, j);
         let pres = presence(side_g.min(side_l), ph.blend_min, ph.blend_max);
         drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
-        let vm = if ph.virtual_mass { ph.virtual_mass_coefficient * a_g * a_l * rho_m } else { 0.0 };
+        let vm = if ph.virtual_mass { cryo::virtual_mass_coefficient(&local, cp) * a_g * a_l * rho_m } else { 0.0 };
         let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
         JunctionCoefficients {
             a_g,
@@ -1010,11 +1043,47 @@ impl<'a> Scheme<'a> {
         }
     }
 
+    /// The closures' view of cell `i` at the old time level.
+    fn local(&self, s: &State, i: usize) -> cryo::Local {
+        let g = &self.grid;
+        let (gp, lp) = (&s.gas[i], &s.liquid[i]);
+        let sat = s.sat[i];
+        cryo::Local {
+            p: s.p[i],
+            t_w: s.t_w[i],
+            t_g: s.t_g[i],
+            t_l: s.t_l[i],
+            t_sat: if sat.h_lg > 0.0 { sat.t_sat } else { s.t_l[i] },
+            alpha: s.alpha[i],
+            rho_g: gp.rho,
+            rho_l: lp.rho,
+            mu_g: gp.mu,
+            mu_l: lp.mu,
+            k_g: gp.k,
+            k_l: lp.k,
+            cp_g: gp.cp,
+            cp_l: lp.cp,
+            h_lg: sat.h_lg,
+            sigma: sat.sigma,
+            h_l: lp.h,
+            h_g: gp.h,
+            h_l_sat: sat.h_l,
+            h_g_sat: sat.h_g,
+            v_g: 0.5 * (s.v_g[i] + s.v_g[i + 1]),
+            v_l: 0.5 * (s.v_l[i] + s.v_l[i + 1]),
+            d_h: g.d_h[i],
+            gravity: if self.physics.gravity { GRAVITY } else { 0.0 },
+            beta_g: -gp.drho_dt / gp.rho,
+            beta_l: -lp.drho_dt / lp.rho,
+        }
+    }
+
     /// Linearised sources of cell `i` (interphase and wall heat and mass transfer, wall
-    /// temperature eliminated implicitly).
-    fn sources(&self, s: &State, i: usize, dt: f64) -> Sources {
+    /// temperature eliminated implicitly), and the cell's new wetted-wall fraction.
+    fn sources(&self, s: &State, i: usize, dt: f64) -> (Sources, f64) {
         let g = &self.grid;
         let ph = &self.physics;
+        let cp = &ph.cryo;
         let (gp, lp) = (&s.gas[i], &s.liquid[i]);
         let a = s.alpha[i];
         let b = 1.0 - a;
@@ -1025,24 +1094,25 @@ impl<'a> Scheme<'a> {
         let liq_here = s.m_l[i] > 0.0;
         let tg = Lin::var(s.t_g[i], 2);
         let tl = Lin::var(s.t_l[i], 3);
+        let sat = s.sat[i];
+        let has_sat = sat.h_lg > 0.0;
+        let local = self.local(s, i);
+        let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[i]);
+        // the wetted fraction relaxes to its regime value with the time constant tauw
+        let w_eq = if liq_here { cryo::wetted_fraction(&local, cp, &regime) } else { 0.0 };
+        let wetted = w_eq + (s.wetted[i] - w_eq) * (-dt / cp.wetting_time_constant.max(1e-9)).exp();
         // wall heat transfer coefficients per unit fluid volume
         let per_vol = g.perimeter[i] / g.area_cell[i];
-        let (hw_g, hw_l) = if ph.wall_heat_transfer {
+        let (hw_g, hw_l, boiling) = if ph.wall_heat_transfer {
             match ph.fixed_wall_htc {
-                Some(h) => (h * per_vol * a, h * per_vol * b),
+                Some(h) => (h * per_vol * a, h * per_vol * b, 0.0),
                 None => {
-                    let d = g.d_h[i];
-                    let vg = 0.5 * (s.v_g[i] + s.v_g[i + 1]);
-                    let vl = 0.5 * (s.v_l[i] + s.v_l[i + 1]);
-                    let h = |pr: &PhaseProps, v: f64| {
-                        let re = pr.rho * v.abs() * d / pr.mu;
-                        forced_convection_htc(re, pr.mu * pr.cp / pr.k, pr.k, d)
-                    };
-                    (h(gp, vg) * per_vol * a, h(lp, vl) * per_vol * b)
+                    let wh = cryo::wall_heat(&local, cp, ph.correlations, wetted);
+                    (wh.h_wg * per_vol, wh.h_wl * per_vol, wh.boiling_fraction)
                 }
             }
         } else {
-            (0.0, 0.0)
+            (0.0, 0.0, 0.0)
         };
         let hw_g = if gas_here { hw_g } else { 0.0 };
         let hw_l = if liq_here { hw_l } else { 0.0 };
@@ -1060,36 +1130,45 @@ impl<'a> Scheme<'a> {
         let mut s_g = q_wg;
         let mut s_l = q_wl;
         let mut gamma = Lin::default();
-        // interphase heat exchange (and phase-blending exchange for a vanishing phase)
-        let h_exchange = if ph.interphase_heat_transfer { ph.interphase_htc_w_m3k * a * b } else { 0.0 };
         let blend = |pres: f64, m: f64, cp: f64| (1.0 - pres) * m.max(0.0) * cp / BLEND_RELAXATION_S;
-        let h_blend = blend(pres_g, s.m_g[i], gp.cp) + blend(pres_l, s.m_l[i], lp.cp);
-        let sat = if ph.phase_change { self.fluid.saturation(s.p[i]).ok() } else { None };
-        match sat {
-            Some(sat) if gas_here && liq_here => {
-                // mass transfer at the interface: Γ_ig = −(q_ig + q_il)/(h*_g − h*_l)
-                let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
-                let h_ig = h_exchange + blend(pres_g, s.m_g[i], gp.cp);
-                let h_il = h_exchange + blend(pres_l, s.m_l[i], lp.cp);
-                let q_ig = ts.sub(tg).scale(h_ig);
-                let q_il = ts.sub(tl).scale(h_il);
-                let q_sum = q_ig.add(q_il).c0;
-                // RELAP5's switch: vapour forms at saturation from liquid at its own enthalpy,
-                // condenses from vapour at its own enthalpy into saturated liquid
-                let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };
-                let dh = (hg_star - hl_star).max(1e-3 * sat.h_lg);
-                let g_ig = q_ig.add(q_il).scale(-1.0 / dh);
-                s_g = s_g.add(q_ig).add(g_ig.scale(hg_star));
-                s_l = s_l.add(q_il).sub(g_ig.scale(hl_star));
-                gamma = g_ig;
-            }
-            _ => {
-                let q = tl.sub(tg).scale(h_exchange + h_blend);
-                s_g = s_g.add(q);
-                s_l = s_l.sub(q);
-            }
+        if ph.phase_change && has_sat && gas_here && liq_here {
+            // wall evaporation (paper: Γ_wg = q_wl/(H*_g − H*_l), scaled by Gwsc): the boiling
+            // share of the wall heat to the liquid turns liquid at its own enthalpy into
+            // saturated vapour; the liquid keeps q_wl − Γ_w h_g,sat, the vapour gains Γ_w h_g,sat
+            let dh_w = (sat.h_g - lp.h).max(1e-3 * sat.h_lg);
+            let g_w = q_wl.scale(cp.wall_mass_transfer_scale * boiling / dh_w);
+            s_l = s_l.sub(g_w.scale(sat.h_g));
+            s_g = s_g.add(g_w.scale(sat.h_g));
+            // interface: Γ_ig = −(q_ig + q_il)/(h*_g − h*_l), Gisc scaling the exchange
+            let iph = if ph.interphase_heat_transfer {
+                cryo::interphase_heat(&local, cp, &regime)
+            } else {
+                cryo::Interphase { h_ig: 0.0, h_il: 0.0 }
+            };
+            let scale = cp.interface_mass_transfer_scale;
+            let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
+            let h_ig = scale * iph.h_ig + blend(pres_g, s.m_g[i], gp.cp);
+            let h_il = scale * iph.h_il + blend(pres_l, s.m_l[i], lp.cp);
+            let q_ig = ts.sub(tg).scale(h_ig);
+            let q_il = ts.sub(tl).scale(h_il);
+            let q_sum = q_ig.add(q_il).c0;
+            // RELAP5's switch: vapour forms at saturation from liquid at its own enthalpy,
+            // condenses from vapour at its own enthalpy into saturated liquid
+            let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };
+            let dh = (hg_star - hl_star).max(1e-3 * sat.h_lg);
+            let g_ig = q_ig.add(q_il).scale(-1.0 / dh);
+            s_g = s_g.add(q_ig).add(g_ig.scale(hg_star));
+            s_l = s_l.add(q_il).sub(g_ig.scale(hl_star));
+            gamma = g_ig.add(g_w);
+        } else {
+            // no phase change: a plain exchange between the phases
+            let h_exchange = if ph.interphase_heat_transfer { ph.interphase_htc_w_m3k * a * b } else { 0.0 };
+            let h_blend = blend(pres_g, s.m_g[i], gp.cp) + blend(pres_l, s.m_l[i], lp.cp);
+            let q = tl.sub(tg).scale(h_exchange + h_blend);
+            s_g = s_g.add(q);
+            s_l = s_l.sub(q);
         }
-        Sources { gamma, s_g, s_l, q_wall, q_amb }
+        (Sources { gamma, s_g, s_l, q_wall, q_amb }, wetted)
     }
 
     fn total_energy_flux(
@@ -1201,5 +1280,12 @@ fn resize(w: &mut Work, n: usize) {
     w.cl.resize(n, Vector4::zeros());
     w.cr.resize(n, Vector4::zeros());
     w.sources.resize(n, Sources::default());
+    w.wetted.resize(n, 0.0);
     w.x.resize(n, Vector4::zeros());
+}
+
+/// Saturation properties at `p`, or all zeros where there are none (above the critical pressure
+/// or below the triple point): `h_lg = 0` then switches phase change off for the cell.
+pub fn saturation_or_none(fluid: &FluidTable, p: f64) -> Saturation {
+    fluid.saturation(p).unwrap_or(Saturation { pressure_pa: p, ..Saturation::default() })
 }
