@@ -111,6 +111,11 @@ pub struct Summary {
     pub scheme_energy_error: f64,
     /// Largest |volume error| seen.
     pub max_volume_error: f64,
+    /// Energy moved by trace-phase resets over the run, J (part of the scheme's budget; not a
+    /// physical exchange).
+    pub trace_adjustment_j: f64,
+    /// Frictional dissipation returned to the fluid as heat over the run, J.
+    pub dissipation_j: f64,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,
     /// First time the wall falls below 150 K, per station.
@@ -424,6 +429,8 @@ pub fn run(
             energy_balance_error,
             scheme_energy_error,
             max_volume_error: max_verr,
+            trace_adjustment_j: cum.adjustment,
+            dissipation_j: cum.dissipation,
             chilldown_time_s: chill,
             quench_arrival_s: quench,
             inlet_liquid_temperature_k: inlet_tl,

@@ -377,8 +377,10 @@ impl<'a> Scheme<'a> {
             }
             // frictional dissipation (wall friction, form losses, interfacial drag) per unit
             // volume of the junction's control volume, returned to the phases as heat
-            w.diss_g[j] = jc.fric_g * vg * vg + 0.5 * jc.drag_physical * (vg - vl) * (vg - vl);
-            w.diss_l[j] = jc.fric_l * vl * vl + 0.5 * jc.drag_physical * (vg - vl) * (vg - vl);
+            // (the total; cells share it between their phases by heat capacity, so that no trace
+            // phase is heated by friction it hardly takes part in)
+            w.diss_g[j] = jc.fric_g * vg * vg + jc.fric_l * vl * vl + jc.drag_physical * (vg - vl) * (vg - vl);
+            w.diss_l[j] = 0.0;
             w.diag[j] = diag;
             w.rhs2[j] = rhs;
         }
@@ -448,8 +450,9 @@ impl<'a> Scheme<'a> {
             r[2] = lambda * (s.e_g[i] - a * gp.rho * gp.u);
             r[3] = lambda * (s.e_l[i] - b * lp.rho * lp.u);
             // frictional dissipation (from the old velocities; step 2 adds the same heat)
-            r[2] += dt * self.dissipation_share(&w.diss_g, i) / v;
-            r[3] += dt * self.dissipation_share(&w.diss_l, i) / v;
+            let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
+            r[2] += dt * heat_g / v;
+            r[3] += dt * heat_l / v;
             // sources: row += −dt * source (moved to the left)
             for (row, lin, sign) in [(0, src.gamma, 1.0), (1, src.gamma, -1.0), (2, src.s_g, 1.0), (3, src.s_l, 1.0)] {
                 r[row] += sign * dt * lin.c0;
@@ -485,9 +488,10 @@ impl<'a> Scheme<'a> {
             }
             // An absent phase has no energy equation: its temperature follows the other phase
             // (within its own table), so that it enters well defined if it flows in.
-            for (present, row, col, phase) in
-                [(s.m_g[i] > 0.0, 2usize, 2usize, Phase::Gas), (s.m_l[i] > 0.0, 3, 3, Phase::Liquid)]
-            {
+            for (present, row, col, phase) in [
+                (present(s.m_g[i], s.m_l[i]), 2usize, 2usize, Phase::Gas),
+                (present(s.m_l[i], s.m_g[i]), 3, 3, Phase::Liquid),
+            ] {
                 if !present {
                     let target = match phase {
                         Phase::Gas => clamp_to_phase(fluid, Phase::Gas, s.p[i], s.t_l[i]) - s.t_g[i],
@@ -553,6 +557,8 @@ impl<'a> Scheme<'a> {
 
         // ---- Step 2: conservative mass and energy, new-time donors ----
         let mut budget = StepBudget::default();
+        let mut mass_g = vec![0.0; n];
+        let mut mass_l = vec![0.0; n];
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
             let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
@@ -569,8 +575,8 @@ impl<'a> Scheme<'a> {
             }
             let bin = inlet1;
             let bout = outlet1;
-            let (in_m, in_e, _) = boundary_conserved(bin, gas);
-            let (out_m, out_e, _) = boundary_conserved(bout, gas);
+            let (in_m, _, _) = boundary_conserved(bin, gas);
+            let (out_m, _, _) = boundary_conserved(bout, gas);
             // mass
             for i in 0..n {
                 let v = g.volume[i];
@@ -590,11 +596,51 @@ impl<'a> Scheme<'a> {
                 return Err(Rejection { cell: 0, variable: "mass", value: dt, reason: "mass system singular" });
             }
             let masses = w.d.clone();
+            if gas {
+                mass_g.copy_from_slice(&masses);
+            } else {
+                mass_l.copy_from_slice(&masses);
+            }
             // boundary mass fluxes with the new donors
             let flux_in = dt * vel[0] * a0 * if vel[0] > 0.0 { in_m } else { masses[0] };
             let flux_out = dt * vel[n] * an * if vel[n] >= 0.0 { masses[n - 1] } else { out_m };
             budget.mass_in += flux_in;
             budget.mass_out += flux_out;
+        }
+        // Each phase's volume change over the step, from its new mass (just solved) at its
+        // provisional density, so that the p dV work matches the mass that actually moved (the
+        // step-1 void fraction alone can disagree for a phase that is nearly gone).
+        let mut dvol_g = vec![0.0; n];
+        let mut dvol_l = vec![0.0; n];
+        for i in 0..n {
+            let x = &w.x[i];
+            let rho_g = (s.gas[i].rho + s.gas[i].drho_dp * x[0] + s.gas[i].drho_dt * x[2]).max(1e-12);
+            let rho_l = (s.liquid[i].rho + s.liquid[i].drho_dp * x[0] + s.liquid[i].drho_dt * x[3]).max(1e-12);
+            let (a_g, a_l) = (mass_g[i].max(0.0) / rho_g, mass_l[i].max(0.0) / rho_l);
+            dvol_g[i] = a_g - s.alpha[i];
+            dvol_l[i] = a_l - (1.0 - s.alpha[i]);
+        }
+        for phase in Phase::ALL {
+            let gas = phase == Phase::Gas;
+            let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
+            // matrix (same for mass and energy)
+            for i in 0..n {
+                let v = g.volume[i];
+                let (jl, jr) = (i, i + 1);
+                let al = g.area_junction[jl] * self.open_fraction(jl, inlet1, outlet1);
+                let ar = g.area_junction[jr] * self.open_fraction(jr, inlet1, outlet1);
+                let (vl, vr) = (vel[jl], vel[jr]);
+                w.b[i] = v + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
+                w.a[i] = -dt * vl.max(0.0) * al;
+                w.c[i] = dt * vr.min(0.0) * ar;
+            }
+            let bin = inlet1;
+            let bout = outlet1;
+            let (_, in_e, _) = boundary_conserved(bin, gas);
+            let (_, out_e, _) = boundary_conserved(bout, gas);
+            let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
+            let an = g.area_junction[n] * self.open_fraction(n, inlet1, outlet1);
+            let masses: &[f64] = if gas { &mass_g } else { &mass_l };
             // energy
             let mut pw_total = 0.0;
             let mut dissipation = 0.0;
@@ -602,16 +648,7 @@ impl<'a> Scheme<'a> {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
                 let src = if gas { w.sources[i].s_g } else { w.sources[i].s_l };
-                // The phase's volume change: its new mass (just solved) at the provisional
-                // density, so that the p dV work matches the mass that actually moved (the
-                // step-1 void fraction alone can disagree for a phase that is nearly gone).
-                let x = &w.x[i];
-                let (rho_new, old_frac) = if gas {
-                    (s.gas[i].rho + s.gas[i].drho_dp * x[0] + s.gas[i].drho_dt * x[2], s.alpha[i])
-                } else {
-                    (s.liquid[i].rho + s.liquid[i].drho_dp * x[0] + s.liquid[i].drho_dt * x[3], 1.0 - s.alpha[i])
-                };
-                let dvol = masses[i] / rho_new.max(1e-12) - old_frac;
+                let dvol = if gas { dvol_g[i] } else { dvol_l[i] };
                 // p^n [V Δα_k + Δt Σ(α̂_k v A)] with old-time donor fractions
                 let frac_flux = |j: usize| -> f64 {
                     let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
@@ -623,7 +660,8 @@ impl<'a> Scheme<'a> {
                 pw_total += pw;
                 // dissipation of junction j (power per volume × junction volume) is shared by
                 // the cells it lies in; a boundary junction's volume lies in its one cell
-                let heat = dt * self.dissipation_share(if gas { &w.diss_g } else { &w.diss_l }, i);
+                let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
+                let heat = dt * if gas { heat_g } else { heat_l };
                 dissipation += heat;
                 w.d[i] = v * old + pw + v * dt * src.eval(&w.x[i]) + heat;
             }
@@ -696,7 +734,7 @@ impl<'a> Scheme<'a> {
                     });
                 }
             }
-            let tiny = 1e-14 * total.max(1e-30);
+            let tiny = PRESENT_MASS_FRACTION * total.max(1e-30);
             let (mg, ml) = (next.m_g[i].max(0.0), next.m_l[i].max(0.0));
             next.m_g[i] = mg;
             next.m_l[i] = ml;
@@ -822,6 +860,8 @@ impl<'a> Scheme<'a> {
         }
         for j in 0..nj {
             let (fg, fl) = self.junction_min_fractions(s, j);
+            let (ag, al) = self.junction_alpha(s, j, inlet0, outlet0);
+            let (fg, fl) = (fg.min(ag), fl.min(al));
             if fg > xmax {
                 check(j, "gas velocity", s.v_g[j], next.v_g[j], SCALE_VELOCITY_M_S);
             }
@@ -871,6 +911,19 @@ impl<'a> Scheme<'a> {
             inside * diss[j] * vol
         };
         share(i) + share(i + 1)
+    }
+
+    /// Cell `i`'s dissipation (W) split between gas and liquid in proportion to their heat
+    /// capacities m_k c_p,k.
+    fn dissipation_split(&self, s: &State, diss: &[f64], i: usize) -> (f64, f64) {
+        let total = self.dissipation_share(diss, i);
+        let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
+        let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
+        if cg + cl <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let fg = cg / (cg + cl);
+        (total * fg, total * (1.0 - fg))
     }
 
     fn open_fraction(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
@@ -1023,8 +1076,9 @@ impl<'a> Scheme<'a> {
         // "smoother"). At a junction a phase counts as disappearing when either neighbouring
         // cell (nearly) lacks it: its velocity there is otherwise undetermined by anything
         // physical, and through the convective term it would drag the neighbouring junctions.
+        // (the junction's own fractions count too: fluid drawn from a liquid reservoir has no gas)
         let (side_g, side_l) = self.junction_min_fractions(s, j);
-        let pres = presence(side_g.min(side_l), ph.blend_min, ph.blend_max);
+        let pres = presence(side_g.min(side_l).min(a_g).min(a_l), ph.blend_min, ph.blend_max);
         drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
         let vm = if ph.virtual_mass { cryo::virtual_mass_coefficient(&local, cp) * a_g * a_l * rho_m } else { 0.0 };
         let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
@@ -1090,8 +1144,8 @@ impl<'a> Scheme<'a> {
         let v = g.volume[i];
         let pres_g = presence(a, ph.blend_min, ph.blend_max);
         let pres_l = presence(b, ph.blend_min, ph.blend_max);
-        let gas_here = s.m_g[i] > 0.0;
-        let liq_here = s.m_l[i] > 0.0;
+        let gas_here = present(s.m_g[i], s.m_l[i]);
+        let liq_here = present(s.m_l[i], s.m_g[i]);
         let tg = Lin::var(s.t_g[i], 2);
         let tl = Lin::var(s.t_l[i], 3);
         let sat = s.sat[i];
@@ -1114,8 +1168,10 @@ impl<'a> Scheme<'a> {
         } else {
             (0.0, 0.0, 0.0)
         };
-        let hw_g = if gas_here { hw_g } else { 0.0 };
-        let hw_l = if liq_here { hw_l } else { 0.0 };
+        // a phase fading out (a trace) fades out of the wall contact too: its heat (and so its
+        // evaporation) must vanish with it, not stay at the full-perimeter value
+        let hw_g = if gas_here { hw_g * pres_g } else { 0.0 };
+        let hw_l = if liq_here { hw_l * pres_l } else { 0.0 };
         let h_amb = ph.ambient_htc_w_m2k * g.outer_area[i] / v;
         let c_w = g.wall_mass[i] * g.material.table().cp(s.t_w[i]) / v;
         let tw = s.t_w[i];
@@ -1194,11 +1250,17 @@ impl<'a> Scheme<'a> {
                 let (m, h) = if inflow {
                     let (m, _, _) = boundary_conserved(b, gas);
                     (m, if gas { b.gas.h } else { b.liquid.h })
-                } else if gas {
-                    (next.m_g[c], old.gas[c].h)
                 } else {
-                    (next.m_l[c], old.liquid[c].h)
+                    // leaving: the cell's new internal energy (the scheme's donor) plus the flow
+                    // work against the boundary pressure
+                    let (m, e, rho) = if gas {
+                        (next.m_g[c], next.e_g[c], next.gas[c].rho)
+                    } else {
+                        (next.m_l[c], next.e_l[c], next.liquid[c].rho)
+                    };
+                    (m, if m > 0.0 { e / m } else { 0.0 } + b.p / rho)
                 };
+                let _ = old;
                 // fluid drawn from a reservoir brings its stagnation enthalpy (it was at rest)
                 let ke = if inflow && b.kind == BoundaryKind::Reservoir { 0.0 } else { 0.5 * v * v };
                 total += sign * dt * v * area * m * (h + ke + grav * z);
@@ -1288,4 +1350,15 @@ fn resize(w: &mut Work, n: usize) {
 /// or below the triple point): `h_lg = 0` then switches phase change off for the cell.
 pub fn saturation_or_none(fluid: &FluidTable, p: f64) -> Saturation {
     fluid.saturation(p).unwrap_or(Saturation { pressure_pa: p, ..Saturation::default() })
+}
+
+/// Mass fraction below which a phase counts as absent in a cell: its energy equation is replaced
+/// and it takes no heat. (Donor-cell fluxes spread vanishing amounts, down to denormal numbers,
+/// which must not reach the closures.)
+pub const PRESENT_MASS_FRACTION: f64 = 1e-12;
+
+/// Is a phase of mass `m` present next to the other phase's mass `other` (per unit volume)?
+#[inline]
+fn present(m: f64, other: f64) -> bool {
+    m > PRESENT_MASS_FRACTION * (m + other)
 }

@@ -137,8 +137,8 @@ fn reservoirs_are_at_the_drive_pressure_and_liquid_temperature() {
             }
             None => assert!((t - ts).abs() < 1e-3, "{s}: saturated reservoir at {t} K, T_sat {ts} K"),
         }
-        assert_eq!(c.inlet.valve_opening_time_s, 1.0, "{s}");
-        assert_eq!(c.inlet.loss_coefficient, 1.0, "{s}");
+        assert_eq!(c.inlet.valve_opening_time_s, 2.0, "{s}");
+        assert_eq!(c.inlet.loss_coefficient, 10.0, "{s}");
     }
 }
 

@@ -1,0 +1,95 @@
+//! Every registry parameter is live: changing it changes the output of a case in which its
+//! regime occurs.
+//!
+//! The cases: the first 90 s of the NBS subcooled chilldown on 10 cells (convection, nucleate,
+//! transition and film boiling, stratified and wavy flow, interphase transfer, friction), the same
+//! with the `miropolskii` correlation set (its own film-boiling and rewet parameters) at the
+//! case's flow and throttled to a low mass flux (where the rewet temperature's Weber-number
+//! terms act), and the
+//! phase-separation problem (heat exchange without phase change, `hi_vol`).
+
+use cryofit_solver::case::Case;
+use cryofit_solver::driver::{self, Output};
+use cryofit_solver::fluids;
+use cryofit_solver::params::{ParameterSet, REGISTRY};
+use cryofit_solver::reference::Reference;
+
+fn nbs(correlations: &str, loss: f64) -> Case {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut case = Case::from_toml(&text, path).unwrap();
+    case.pipe.cells = 10;
+    case.time.end_s = 90.0;
+    case.time.output_interval_s = 2.0;
+    case.physics.correlations = correlations.to_string();
+    case.inlet.loss_coefficient = loss;
+    case
+}
+
+fn run(case: &Case, params: &ParameterSet) -> Output {
+    let fluid = fluids::embedded(&case.fluid.name).unwrap();
+    driver::run(case, fluid, params, &mut |_| {}).unwrap_or_else(|e| panic!("{}: {e}", case.title))
+}
+
+/// Largest relative difference between two runs' probe values.
+fn difference(a: &Output, b: &Output) -> f64 {
+    if a.probes.len() != b.probes.len() {
+        return f64::INFINITY;
+    }
+    a.probes
+        .iter()
+        .zip(&b.probes)
+        .map(|(x, y)| (x.value - y.value).abs() / x.value.abs().max(y.value.abs()).max(1e-9))
+        .fold(0.0, f64::max)
+}
+
+/// A value inside the bounds, clearly different from the default.
+fn perturbed(default: f64, lower: f64, upper: f64) -> f64 {
+    if upper > default { default + 0.5 * (upper - default) } else { default - 0.5 * (default - lower) }
+}
+
+#[test]
+fn every_parameter_changes_some_output() {
+    let cases = [
+        ("nbs subcooled, paper set", nbs("paper", 10.0)),
+        ("nbs subcooled, miropolskii set", nbs("miropolskii", 10.0)),
+        // a throttled inlet: low mass flux, where the Darr–Hartwig rewet temperature is below
+        // its cap at the critical temperature
+        ("nbs subcooled, miropolskii set, throttled", nbs("miropolskii", 400.0)),
+    ];
+    let separation = Reference::Separation.with_cells(10);
+    let baselines: Vec<Output> = cases.iter().map(|(_, c)| run(c, &ParameterSet::new())).collect();
+    let sep_base = run(&separation, &driver::case_parameters(&separation).unwrap());
+    let mut dead = Vec::new();
+    for p in REGISTRY {
+        let value = perturbed(p.default, p.lower, p.upper);
+        let mut live = None;
+        for ((label, case), base) in cases.iter().zip(&baselines) {
+            let mut set = ParameterSet::new();
+            set.set(p.name, value).unwrap();
+            let d = match driver::run(case, fluids::embedded("nitrogen").unwrap(), &set, &mut |_| {}) {
+                Ok(out) => difference(base, &out),
+                // a run the change makes fail is a change too
+                Err(_) => f64::INFINITY,
+            };
+            if d > 1e-9 {
+                live = Some((label.to_string(), d));
+                break;
+            }
+        }
+        if live.is_none() {
+            let mut set = driver::case_parameters(&separation).unwrap();
+            set.set(p.name, value).unwrap();
+            let out = run(&separation, &set);
+            let d = difference(&sep_base, &out);
+            if d > 1e-9 {
+                live = Some(("separation".into(), d));
+            }
+        }
+        match live {
+            Some((label, d)) => println!("{:<16} {} = {value}: changes {label} by {d:.2e}", p.name, p.name),
+            None => dead.push(p.name),
+        }
+    }
+    assert!(dead.is_empty(), "parameters without effect on any case: {dead:?}");
+}
