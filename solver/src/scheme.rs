@@ -562,19 +562,8 @@ impl<'a> Scheme<'a> {
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
             let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
-            // matrix (same for mass and energy)
-            for i in 0..n {
-                let v = g.volume[i];
-                let (jl, jr) = (i, i + 1);
-                let al = g.area_junction[jl] * self.open_fraction(jl, inlet1, outlet1);
-                let ar = g.area_junction[jr] * self.open_fraction(jr, inlet1, outlet1);
-                let (vl, vr) = (vel[jl], vel[jr]);
-                w.b[i] = v + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
-                w.a[i] = -dt * vl.max(0.0) * al;
-                w.c[i] = dt * vr.min(0.0) * ar;
-            }
-            let bin = inlet1;
-            let bout = outlet1;
+            self.transport_matrix(w, vel, dt, inlet1, outlet1);
+            let (bin, bout) = (inlet1, outlet1);
             let (in_m, _, _) = boundary_conserved(bin, gas);
             let (out_m, _, _) = boundary_conserved(bout, gas);
             // mass
@@ -623,19 +612,8 @@ impl<'a> Scheme<'a> {
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
             let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
-            // matrix (same for mass and energy)
-            for i in 0..n {
-                let v = g.volume[i];
-                let (jl, jr) = (i, i + 1);
-                let al = g.area_junction[jl] * self.open_fraction(jl, inlet1, outlet1);
-                let ar = g.area_junction[jr] * self.open_fraction(jr, inlet1, outlet1);
-                let (vl, vr) = (vel[jl], vel[jr]);
-                w.b[i] = v + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
-                w.a[i] = -dt * vl.max(0.0) * al;
-                w.c[i] = dt * vr.min(0.0) * ar;
-            }
-            let bin = inlet1;
-            let bout = outlet1;
+            self.transport_matrix(w, vel, dt, inlet1, outlet1);
+            let (bin, bout) = (inlet1, outlet1);
             let (_, in_e, _) = boundary_conserved(bin, gas);
             let (_, out_e, _) = boundary_conserved(bout, gas);
             let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
@@ -911,6 +889,21 @@ impl<'a> Scheme<'a> {
             inside * diss[j] * vol
         };
         share(i) + share(i + 1)
+    }
+
+    /// The donor-cell transport matrix of the conservative step (the same for a phase's mass and
+    /// energy): `V m_i + Δt (outflow − inflow)` with new-time donors, into `w.a`, `w.b`, `w.c`.
+    fn transport_matrix(&self, w: &mut Work, vel: &[f64], dt: f64, inlet: &BoundaryState, outlet: &BoundaryState) {
+        let g = &self.grid;
+        for i in 0..g.n {
+            let (jl, jr) = (i, i + 1);
+            let al = g.area_junction[jl] * self.open_fraction(jl, inlet, outlet);
+            let ar = g.area_junction[jr] * self.open_fraction(jr, inlet, outlet);
+            let (vl, vr) = (vel[jl], vel[jr]);
+            w.b[i] = g.volume[i] + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
+            w.a[i] = -dt * vl.max(0.0) * al;
+            w.c[i] = dt * vr.min(0.0) * ar;
+        }
     }
 
     /// Cell `i`'s dissipation (W) split between gas and liquid in proportion to their heat
