@@ -44,3 +44,41 @@ fn robustness_rejects_bad_arguments() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(err.contains("/nonexistent/case.toml"), "{err}");
 }
+
+/// 100 random parameter sets on a CI-sized NBS subcooled case (10 cells, 60 s): no run panics,
+/// and every failure is an error naming time, cell, variable and value. The completion fraction
+/// is printed; BENCHMARKS.md records the full-size figure and its target.
+#[test]
+fn robustness_on_the_nbs_case_never_panics() {
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+    let text = std::fs::read_to_string(src)
+        .unwrap()
+        .replace("cells = 30", "cells = 10")
+        .replace("end_s = 1000.0", "end_s = 60.0")
+        .replace("output_interval_s = 1.0", "output_interval_s = 5.0")
+        // bound each sample's cost: a sample still crawling after 2 s of computing ends with
+        // a max_wall_s error, which is a reported failure like the others
+        .replace("max_dt_s = 0.5", "max_dt_s = 0.5\nmax_wall_s = 2.0");
+    let dir = std::env::temp_dir().join(format!("cryofit-robustness-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let case = dir.join("subcooled-small.toml");
+    std::fs::write(&case, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["bench", "robustness", "--case", case.to_str().unwrap(), "--samples", "100", "--seed", "7", "--json"])
+        .env_remove("CRYOFIT_DATA_DIR")
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let failures = v["failures"].as_array().unwrap();
+    assert_eq!(v["completed"].as_u64().unwrap() as usize + failures.len(), 100);
+    for f in failures {
+        let e = f["error"].as_str().unwrap();
+        let located = e.contains("t = ") && (e.contains("cell") || e.contains("max_wall_s"));
+        assert!(located, "failure without time and place: {e}");
+    }
+    println!("robustness: {} of 100 complete; causes {}", v["completed"], v["failure_causes"]);
+}
