@@ -116,6 +116,10 @@ pub struct Summary {
     pub trace_adjustment_j: f64,
     /// Frictional dissipation returned to the fluid as heat over the run, J.
     pub dissipation_j: f64,
+    /// Why steps were rejected: "variable: reason" and how often (to see what makes a run slow).
+    pub rejection_causes: BTreeMap<String, u64>,
+    /// Which controlled variable came closest to its limit in accepted steps, and how often.
+    pub step_limited_by: BTreeMap<String, u64>,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,
     /// First time the wall falls below 150 K, per station.
@@ -295,6 +299,8 @@ pub fn run(
     let end = t.end_s;
     let eps = 1e-9 * end;
     let mut easy_steps = 0u32;
+    let mut rejection_causes: BTreeMap<String, u64> = BTreeMap::new();
+    let mut step_limited_by: BTreeMap<String, u64> = BTreeMap::new();
     loop {
         if s.time >= next_out - eps {
             record_probes(&mut probes, &s, &grid, &stations);
@@ -350,6 +356,9 @@ pub fn run(
                     max_dt = max_dt.max(h);
                     max_verr = max_verr.max(report.max_volume_error);
                     add_budget(&mut cum, &report.budget);
+                    if !report.limiting.is_empty() {
+                        *step_limited_by.entry(report.limiting.to_string()).or_default() += 1;
+                    }
                     if report.change_ratio < 0.5 {
                         easy_steps += 1;
                     } else {
@@ -370,6 +379,7 @@ pub fn run(
                 }
                 Err(Rejection { cell, variable, value, reason }) => {
                     rejected += 1;
+                    *rejection_causes.entry(format!("{variable}: {reason}")).or_default() += 1;
                     h *= 0.5;
                     dt = h;
                     easy_steps = 0;
@@ -431,6 +441,8 @@ pub fn run(
             max_volume_error: max_verr,
             trace_adjustment_j: cum.adjustment,
             dissipation_j: cum.dissipation,
+            rejection_causes,
+            step_limited_by,
             chilldown_time_s: chill,
             quench_arrival_s: quench,
             inlet_liquid_temperature_k: inlet_tl,

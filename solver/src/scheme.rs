@@ -145,6 +145,8 @@ pub struct StepReport {
     pub change_ratio: f64,
     /// Largest |volume error| over the cells.
     pub max_volume_error: f64,
+    /// The controlled variable that came closest to its limit (what holds the step down).
+    pub limiting: &'static str,
     /// Budget terms.
     pub budget: StepBudget,
 }
@@ -875,7 +877,7 @@ impl<'a> Scheme<'a> {
                 reason: "phase volumes do not fill the cell",
             });
         }
-        Ok((next, StepReport { change_ratio: ratio, max_volume_error: max_verr, budget }))
+        Ok((next, StepReport { change_ratio: ratio, max_volume_error: max_verr, limiting: worst.variable, budget }))
     }
 
     /// Dissipated power (W) that cell `i` receives from its two junctions: each junction's
@@ -1185,7 +1187,19 @@ impl<'a> Scheme<'a> {
             // share of the wall heat to the liquid turns liquid at its own enthalpy into
             // saturated vapour; the liquid keeps q_wl − Γ_w h_g,sat, the vapour gains Γ_w h_g,sat
             let dh_w = (sat.h_g - lp.h).max(1e-3 * sat.h_lg);
-            let g_w = q_wl.scale(cp.wall_mass_transfer_scale * boiling / dh_w);
+            let mut g_w = q_wl.scale(cp.wall_mass_transfer_scale * boiling / dh_w);
+            // A phase cannot give more mass than it has: where a step would evaporate (or
+            // condense) more than half of what is left of a vanishing phase, the transfer is
+            // scaled down so that it empties over a few steps instead of going negative (a
+            // smaller step would do the same; this saves the hundreds of thousands of steps a
+            // trace of condensing vapour in subcooled liquid otherwise costs).
+            let mass_limit = |rate: f64, available: f64| -> f64 {
+                let take = rate.abs() * dt;
+                if take > 0.5 * available { 0.5 * available / take } else { 1.0 }
+            };
+            if g_w.c0 > 0.0 {
+                g_w = g_w.scale(mass_limit(g_w.c0, s.m_l[i]));
+            }
             s_l = s_l.sub(g_w.scale(sat.h_g));
             s_g = s_g.add(g_w.scale(sat.h_g));
             // interface: Γ_ig = −(q_ig + q_il)/(h*_g − h*_l), Gisc scaling the exchange
@@ -1196,15 +1210,21 @@ impl<'a> Scheme<'a> {
             };
             let scale = cp.interface_mass_transfer_scale;
             let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
-            let h_ig = scale * iph.h_ig + blend(pres_g, s.m_g[i], gp.cp);
-            let h_il = scale * iph.h_il + blend(pres_l, s.m_l[i], lp.cp);
-            let q_ig = ts.sub(tg).scale(h_ig);
-            let q_il = ts.sub(tl).scale(h_il);
-            let q_sum = q_ig.add(q_il).c0;
-            // RELAP5's switch: vapour forms at saturation from liquid at its own enthalpy,
-            // condenses from vapour at its own enthalpy into saturated liquid
+            let mut h_ig = scale * iph.h_ig + blend(pres_g, s.m_g[i], gp.cp);
+            let mut h_il = scale * iph.h_il + blend(pres_l, s.m_l[i], lp.cp);
+            let q_sum = h_ig * (sat.t_sat - s.t_g[i]) + h_il * (sat.t_sat - s.t_l[i]);
             let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };
             let dh = (hg_star - hl_star).max(1e-3 * sat.h_lg);
+            // the same mass limit on the interface transfer (both sides scaled: the interface
+            // energy balance holds)
+            let rate = -q_sum / dh;
+            let f = if rate < 0.0 { mass_limit(rate, s.m_g[i]) } else { mass_limit(rate, s.m_l[i]) };
+            h_ig *= f;
+            h_il *= f;
+            let q_ig = ts.sub(tg).scale(h_ig);
+            let q_il = ts.sub(tl).scale(h_il);
+            // (h*: RELAP5's switch — vapour forms at saturation from liquid at its own enthalpy,
+            // condenses from vapour at its own enthalpy into saturated liquid)
             let g_ig = q_ig.add(q_il).scale(-1.0 / dh);
             s_g = s_g.add(q_ig).add(g_ig.scale(hg_star));
             s_l = s_l.add(q_il).sub(g_ig.scale(hl_star));
