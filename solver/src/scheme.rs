@@ -222,6 +222,12 @@ struct Sources {
     q_wall: Lin,
     /// Ambient-to-wall heat per fluid volume, W/m³.
     q_amb: Lin,
+    /// The phase-change parts of `s_g` and `s_l` (interface heat with its mass transfer, and
+    /// the wall evaporation), which add up to nothing: scaled together with `gamma` when a
+    /// vanishing phase would otherwise give more mass than it has.
+    pc_g: Lin,
+    /// See `pc_g`.
+    pc_l: Lin,
 }
 
 /// Reusable work arrays of the scheme.
@@ -559,6 +565,23 @@ impl<'a> Scheme<'a> {
 
         // ---- Step 2: conservative mass and energy, new-time donors ----
         let mut budget = StepBudget::default();
+        // Sources at the provisional state. The linearised phase change, evaluated there, may
+        // take more of a vanishing phase than the cell holds (condensing vapour traces in
+        // subcooled liquid under a pressure rise, say): then all of the cell's phase change is
+        // scaled down so that at most 90 % of that phase goes in one step. The phase-change
+        // parts of the two energy sources add up to nothing, so the scaling keeps energy.
+        let mut gamma_used = vec![0.0; n];
+        let mut sg_used = vec![0.0; n];
+        let mut sl_used = vec![0.0; n];
+        for i in 0..n {
+            let (src, x) = (&w.sources[i], &w.x[i]);
+            let gam = src.gamma.eval(x);
+            let (available, take) = if gam < 0.0 { (s.m_g[i], -gam * dt) } else { (s.m_l[i], gam * dt) };
+            let f = if take > 0.9 * available.max(0.0) { 0.9 * available.max(0.0) / take } else { 1.0 };
+            gamma_used[i] = f * gam;
+            sg_used[i] = src.s_g.eval(x) - (1.0 - f) * src.pc_g.eval(x);
+            sl_used[i] = src.s_l.eval(x) - (1.0 - f) * src.pc_l.eval(x);
+        }
         let mut mass_g = vec![0.0; n];
         let mut mass_l = vec![0.0; n];
         for phase in Phase::ALL {
@@ -572,7 +595,7 @@ impl<'a> Scheme<'a> {
             for i in 0..n {
                 let v = g.volume[i];
                 let old = if gas { s.m_g[i] } else { s.m_l[i] };
-                let gamma = w.sources[i].gamma.eval(&w.x[i]);
+                let gamma = gamma_used[i];
                 w.d[i] = v * old + v * dt * if gas { gamma } else { -gamma };
             }
             let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
@@ -627,7 +650,7 @@ impl<'a> Scheme<'a> {
             for i in 0..n {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
-                let src = if gas { w.sources[i].s_g } else { w.sources[i].s_l };
+                let src = if gas { sg_used[i] } else { sl_used[i] };
                 let dvol = if gas { dvol_g[i] } else { dvol_l[i] };
                 // p^n [V Δα_k + Δt Σ(α̂_k v A)] with old-time donor fractions
                 let frac_flux = |j: usize| -> f64 {
@@ -643,7 +666,7 @@ impl<'a> Scheme<'a> {
                 let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
                 let heat = dt * if gas { heat_g } else { heat_l };
                 dissipation += heat;
-                w.d[i] = v * old + pw + v * dt * src.eval(&w.x[i]) + heat;
+                w.d[i] = v * old + pw + v * dt * src + heat;
             }
             if vel[0] > 0.0 {
                 w.d[0] += dt * vel[0] * a0 * in_e;
@@ -1181,6 +1204,7 @@ impl<'a> Scheme<'a> {
         let mut s_g = q_wg;
         let mut s_l = q_wl;
         let mut gamma = Lin::default();
+        let (mut pc_g, mut pc_l) = (Lin::default(), Lin::default());
         let blend = |pres: f64, m: f64, cp: f64| (1.0 - pres) * m.max(0.0) * cp / BLEND_RELAXATION_S;
         if ph.phase_change && has_sat && gas_here && liq_here {
             // wall evaporation (paper: Γ_wg = q_wl/(H*_g − H*_l), scaled by Gwsc): the boiling
@@ -1229,6 +1253,8 @@ impl<'a> Scheme<'a> {
             s_g = s_g.add(q_ig).add(g_ig.scale(hg_star));
             s_l = s_l.add(q_il).sub(g_ig.scale(hl_star));
             gamma = g_ig.add(g_w);
+            pc_g = q_ig.add(g_ig.scale(hg_star)).add(g_w.scale(sat.h_g));
+            pc_l = q_il.sub(g_ig.scale(hl_star)).sub(g_w.scale(sat.h_g));
         } else {
             // no phase change: a plain exchange between the phases
             let h_exchange = if ph.interphase_heat_transfer { ph.interphase_htc_w_m3k * a * b } else { 0.0 };
@@ -1237,7 +1263,7 @@ impl<'a> Scheme<'a> {
             s_g = s_g.add(q);
             s_l = s_l.sub(q);
         }
-        (Sources { gamma, s_g, s_l, q_wall, q_amb }, wetted)
+        (Sources { gamma, s_g, s_l, q_wall, q_amb, pc_g, pc_l }, wetted)
     }
 
     fn total_energy_flux(
