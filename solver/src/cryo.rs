@@ -549,10 +549,32 @@ pub fn convection_nusselt(re: f64, pr: f64, gr_pr: f64, exponent_scale: f64) -> 
     let re = re.max(0.0);
     let pr = pr.max(0.0);
     let ra = gr_pr.max(0.0);
-    let forced_turbulent = 0.023 * re.powf(0.8 * exponent_scale) * pr.powf(0.4);
+    let forced_turbulent = scaled_dittus_boelter(re, pr, exponent_scale);
     let natural_laminar = 0.59 * ra.powf(0.25);
     let natural_turbulent = 0.1 * ra.cbrt();
     NU_LAMINAR.max(forced_turbulent).max(natural_laminar).max(natural_turbulent)
+}
+
+/// Largest factor by which scaling the Dittus–Boelter Reynolds exponent may raise the Nusselt
+/// number above its unscaled value.
+///
+/// Decision: the exponent scales (`hg0esc`, `hgi0esc`, `hli0esc`) are calibration knobs on an
+/// empirical exponent, and their registry range (a factor 4 either side, as for every `sc` name)
+/// reaches Re^3.2, which at Re = 1e5 is a Nusselt number of 1e14 — a wall cooled by a gas at tens of
+/// megawatts per square metre, and a chilldown the time stepping cannot follow. Within a factor
+/// 10 of Dittus–Boelter the knob keeps all its effect where it is physical.
+pub const EXPONENT_SCALE_NU_CAP: f64 = 10.0;
+
+/// Dittus–Boelter with the Reynolds exponent 0.8 scaled by `exponent_scale`, bounded by
+/// [`EXPONENT_SCALE_NU_CAP`] times (and at least a tenth of) the unscaled value.
+pub fn scaled_dittus_boelter(re: f64, pr: f64, exponent_scale: f64) -> f64 {
+    let re = re.max(0.0);
+    let base = 0.023 * re.powf(0.8) * pr.max(0.0).powf(0.4);
+    if exponent_scale == 1.0 {
+        return base;
+    }
+    let scaled = base * re.powf(0.8 * (exponent_scale - 1.0));
+    scaled.clamp(base / EXPONENT_SCALE_NU_CAP, base * EXPONENT_SCALE_NU_CAP)
 }
 
 /// Grashof number ρ² g β_T |ΔT| D³/μ² (true gravity; 0 without it).
@@ -1039,7 +1061,7 @@ pub fn interphase_heat(s: &Local, p: &CryoParams, regime: &Regime) -> Interphase
     let pr_g = prandtl(s.mu_g, s.cp_g, s.k_g);
     let pr_l = prandtl(s.mu_l, s.cp_l, s.k_l);
     let (eg, el) = (p.gas_interface_exponent_scale, p.liquid_interface_exponent_scale);
-    let db = |re: f64, pr: f64, e: f64, nu0: f64| nu0.max(0.023 * re.max(0.0).powf(0.8 * e) * pr.powf(0.4));
+    let db = |re: f64, pr: f64, e: f64, nu0: f64| nu0.max(scaled_dittus_boelter(re, pr, e));
 
     // pipe-scale interfaces (stratified, wavy, annular)
     let re_g = s.rho_g * v_r * d / s.mu_g.max(TINY);
