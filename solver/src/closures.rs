@@ -1,6 +1,5 @@
-//! Basic closures the scheme needs before the cryogenic closure set: single-phase wall friction
-//! and convection, a simple interfacial drag and interphase heat exchange. Each is a small pure
-//! function of local state.
+//! Small closures shared by the scheme and the cryogenic closure set ([`crate::cryo`]): Churchill's
+//! friction factor and the smooth step of phase blending. Each is a pure function.
 
 /// Darcy friction factor from Churchill's (1977) correlation, valid for laminar, transitional
 /// and turbulent flow.
@@ -13,14 +12,6 @@ pub fn churchill_darcy(re: f64, relative_roughness: f64) -> f64 {
     let a = (2.457 * (1.0 / ((7.0 / re).powf(0.9) + 0.27 * relative_roughness)).ln()).powi(16);
     let b = (37530.0 / re).powi(16);
     8.0 * ((8.0 / re).powi(12) + (a + b).powf(-1.5)).powf(1.0 / 12.0)
-}
-
-/// Single-phase forced-convection heat transfer coefficient, W/(m² K): the larger of the
-/// laminar fully developed value Nu = 4.36 and Dittus–Boelter Nu = 0.023 Re^0.8 Pr^0.4.
-pub fn forced_convection_htc(re: f64, pr: f64, k: f64, d_h: f64) -> f64 {
-    let nu_lam: f64 = 4.36;
-    let nu_turb = 0.023 * re.max(0.0).powf(0.8) * pr.max(0.0).powf(0.4);
-    nu_lam.max(nu_turb) * k / d_h
 }
 
 /// Smooth step g(x) = 3x² − 2x³ on [0, 1] (0 below, 1 above), used to blend a disappearing
@@ -48,15 +39,6 @@ mod tests {
         // smooth turbulent at Re = 1e5: Blasius 0.316 Re^-0.25 = 0.0178; Churchill ≈ 0.0180
         let f = churchill_darcy(1e5, 0.0);
         assert!((f - 0.018).abs() < 0.0006, "{f}");
-    }
-
-    #[test]
-    fn convection_regimes() {
-        // laminar floor
-        assert!((forced_convection_htc(100.0, 1.0, 0.1, 0.01) - 43.6).abs() < 1e-9);
-        // turbulent: 0.023 * 1e5^0.8 * 2^0.4 * 0.1/0.01
-        let h = forced_convection_htc(1e5, 2.0, 0.1, 0.01);
-        assert!((h - 0.023 * 1e5f64.powf(0.8) * 2f64.powf(0.4) * 10.0).abs() < 1e-6);
     }
 
     #[test]

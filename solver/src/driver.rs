@@ -159,10 +159,7 @@ pub fn physics_of(case: &Case, params: &ParameterSet, fluid: &FluidTable) -> Phy
     Physics {
         cryo: crate::cryo::CryoParams::from_set(params).with_fluid(fluid.constants()),
         correlations: p.correlations.parse().unwrap_or(crate::cryo::CorrelationSet::Paper),
-        virtual_mass_coefficient: params.get("vm_coeff"),
         interphase_htc_w_m3k: params.get("hi_vol"),
-        blend_min: params.get("blend_xmin"),
-        blend_max: params.get("blend_xmax"),
         phase_change: p.phase_change,
         wall_heat_transfer: p.wall_heat_transfer,
         interphase_heat_transfer: p.interphase_heat_transfer,

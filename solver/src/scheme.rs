@@ -61,14 +61,8 @@ pub struct Physics {
     pub virtual_mass: bool,
     /// Fixed wall heat transfer coefficient, W/(m² K), instead of correlations.
     pub fixed_wall_htc: Option<f64>,
-    /// Virtual-mass coefficient C in C α β ρ_m ∂(v_g − v_l)/∂t.
-    pub virtual_mass_coefficient: f64,
     /// Volumetric interphase heat transfer coefficient scale, W/(m³ K), times α(1 − α).
     pub interphase_htc_w_m3k: f64,
-    /// Lower phase-blending threshold (void fraction of the disappearing phase).
-    pub blend_min: f64,
-    /// Upper phase-blending threshold.
-    pub blend_max: f64,
     /// Ambient temperature, K.
     pub ambient_temperature_k: f64,
     /// Ambient heat transfer coefficient on the outer wall, W/(m² K).
@@ -90,10 +84,7 @@ impl Default for Physics {
             gravity: true,
             virtual_mass: true,
             fixed_wall_htc: None,
-            virtual_mass_coefficient: 0.5,
             interphase_htc_w_m3k: 1.0e5,
-            blend_min: 1e-7,
-            blend_max: 1e-2,
             ambient_temperature_k: 290.0,
             ambient_htc_w_m2k: 0.0,
             cryo: cryo::CryoParams::default(),
@@ -234,6 +225,18 @@ struct Sources {
 #[derive(Debug, Clone, Default)]
 struct Work {
     wetted: Vec<f64>,
+    /// Dissipated heat per cell going to the gas and the liquid, W (from step 1, reused in step 2).
+    heat_g: Vec<f64>,
+    heat_l: Vec<f64>,
+    dp: Vec<f64>,
+    mass_g: Vec<f64>,
+    mass_l: Vec<f64>,
+    dvol_g: Vec<f64>,
+    dvol_l: Vec<f64>,
+    gamma_used: Vec<f64>,
+    sg_used: Vec<f64>,
+    sl_used: Vec<f64>,
+    reset: Vec<bool>,
     diss_g: Vec<f64>,
     diss_l: Vec<f64>,
     vt_g: Vec<f64>,
@@ -459,6 +462,8 @@ impl<'a> Scheme<'a> {
             r[3] = lambda * (s.e_l[i] - b * lp.rho * lp.u);
             // frictional dissipation (from the old velocities; step 2 adds the same heat)
             let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
+            w.heat_g[i] = heat_g;
+            w.heat_l[i] = heat_l;
             r[2] += dt * heat_g / v;
             r[3] += dt * heat_l / v;
             // sources: row += −dt * source (moved to the left)
@@ -555,10 +560,13 @@ impl<'a> Scheme<'a> {
         }
         // new velocities
         let mut next = s.clone();
-        let dps: Vec<f64> = w.x.iter().map(|x| x[0]).collect();
+        for (d, x) in w.dp.iter_mut().zip(&w.x) {
+            *d = x[0];
+        }
+        let dps = &w.dp;
         for j in 0..nj {
-            let dpl = dp_at(j as isize - 1, &dps);
-            let dpr = dp_at(j as isize, &dps);
+            let dpl = dp_at(j as isize - 1, dps);
+            let dpr = dp_at(j as isize, dps);
             next.v_g[j] = w.vt_g[j] + w.w_g[j] * (dpl - dpr);
             next.v_l[j] = w.vt_l[j] + w.w_l[j] * (dpl - dpr);
         }
@@ -570,20 +578,15 @@ impl<'a> Scheme<'a> {
         // subcooled liquid under a pressure rise, say): then all of the cell's phase change is
         // scaled down so that at most 90 % of that phase goes in one step. The phase-change
         // parts of the two energy sources add up to nothing, so the scaling keeps energy.
-        let mut gamma_used = vec![0.0; n];
-        let mut sg_used = vec![0.0; n];
-        let mut sl_used = vec![0.0; n];
         for i in 0..n {
             let (src, x) = (&w.sources[i], &w.x[i]);
             let gam = src.gamma.eval(x);
             let (available, take) = if gam < 0.0 { (s.m_g[i], -gam * dt) } else { (s.m_l[i], gam * dt) };
             let f = if take > 0.9 * available.max(0.0) { 0.9 * available.max(0.0) / take } else { 1.0 };
-            gamma_used[i] = f * gam;
-            sg_used[i] = src.s_g.eval(x) - (1.0 - f) * src.pc_g.eval(x);
-            sl_used[i] = src.s_l.eval(x) - (1.0 - f) * src.pc_l.eval(x);
+            w.gamma_used[i] = f * gam;
+            w.sg_used[i] = src.s_g.eval(x) - (1.0 - f) * src.pc_g.eval(x);
+            w.sl_used[i] = src.s_l.eval(x) - (1.0 - f) * src.pc_l.eval(x);
         }
-        let mut mass_g = vec![0.0; n];
-        let mut mass_l = vec![0.0; n];
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
             let vel: &[f64] = if gas { &next.v_g } else { &next.v_l };
@@ -595,7 +598,7 @@ impl<'a> Scheme<'a> {
             for i in 0..n {
                 let v = g.volume[i];
                 let old = if gas { s.m_g[i] } else { s.m_l[i] };
-                let gamma = gamma_used[i];
+                let gamma = w.gamma_used[i];
                 w.d[i] = v * old + v * dt * if gas { gamma } else { -gamma };
             }
             let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
@@ -609,12 +612,12 @@ impl<'a> Scheme<'a> {
             if !linalg::tridiagonal(&w.a, &w.b, &w.c, &mut w.d, &mut w.s) {
                 return Err(Rejection { cell: 0, variable: "mass", value: dt, reason: "mass system singular" });
             }
-            let masses = w.d.clone();
             if gas {
-                mass_g.copy_from_slice(&masses);
+                w.mass_g.copy_from_slice(&w.d);
             } else {
-                mass_l.copy_from_slice(&masses);
+                w.mass_l.copy_from_slice(&w.d);
             }
+            let masses: &[f64] = if gas { &w.mass_g } else { &w.mass_l };
             // boundary mass fluxes with the new donors
             let flux_in = dt * vel[0] * a0 * if vel[0] > 0.0 { in_m } else { masses[0] };
             let flux_out = dt * vel[n] * an * if vel[n] >= 0.0 { masses[n - 1] } else { out_m };
@@ -624,15 +627,13 @@ impl<'a> Scheme<'a> {
         // Each phase's volume change over the step, from its new mass (just solved) at its
         // provisional density, so that the p dV work matches the mass that actually moved (the
         // step-1 void fraction alone can disagree for a phase that is nearly gone).
-        let mut dvol_g = vec![0.0; n];
-        let mut dvol_l = vec![0.0; n];
         for i in 0..n {
             let x = &w.x[i];
             let rho_g = (s.gas[i].rho + s.gas[i].drho_dp * x[0] + s.gas[i].drho_dt * x[2]).max(1e-12);
             let rho_l = (s.liquid[i].rho + s.liquid[i].drho_dp * x[0] + s.liquid[i].drho_dt * x[3]).max(1e-12);
-            let (a_g, a_l) = (mass_g[i].max(0.0) / rho_g, mass_l[i].max(0.0) / rho_l);
-            dvol_g[i] = a_g - s.alpha[i];
-            dvol_l[i] = a_l - (1.0 - s.alpha[i]);
+            let (a_g, a_l) = (w.mass_g[i].max(0.0) / rho_g, w.mass_l[i].max(0.0) / rho_l);
+            w.dvol_g[i] = a_g - s.alpha[i];
+            w.dvol_l[i] = a_l - (1.0 - s.alpha[i]);
         }
         for phase in Phase::ALL {
             let gas = phase == Phase::Gas;
@@ -643,15 +644,14 @@ impl<'a> Scheme<'a> {
             let (_, out_e, _) = boundary_conserved(bout, gas);
             let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
             let an = g.area_junction[n] * self.open_fraction(n, inlet1, outlet1);
-            let masses: &[f64] = if gas { &mass_g } else { &mass_l };
             // energy
             let mut pw_total = 0.0;
             let mut dissipation = 0.0;
             for i in 0..n {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
-                let src = if gas { sg_used[i] } else { sl_used[i] };
-                let dvol = if gas { dvol_g[i] } else { dvol_l[i] };
+                let src = if gas { w.sg_used[i] } else { w.sl_used[i] };
+                let dvol = if gas { w.dvol_g[i] } else { w.dvol_l[i] };
                 // p^n [V Δα_k + Δt Σ(α̂_k v A)] with old-time donor fractions
                 let frac_flux = |j: usize| -> f64 {
                     let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
@@ -663,8 +663,7 @@ impl<'a> Scheme<'a> {
                 pw_total += pw;
                 // dissipation of junction j (power per volume × junction volume) is shared by
                 // the cells it lies in; a boundary junction's volume lies in its one cell
-                let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
-                let heat = dt * if gas { heat_g } else { heat_l };
+                let heat = dt * if gas { w.heat_g[i] } else { w.heat_l[i] };
                 dissipation += heat;
                 w.d[i] = v * old + pw + v * dt * src + heat;
             }
@@ -684,10 +683,10 @@ impl<'a> Scheme<'a> {
             budget.dissipation += dissipation;
             for i in 0..n {
                 if gas {
-                    next.m_g[i] = masses[i];
+                    next.m_g[i] = w.mass_g[i];
                     next.e_g[i] = w.d[i];
                 } else {
-                    next.m_l[i] = masses[i];
+                    next.m_l[i] = w.mass_l[i];
                     next.e_l[i] = w.d[i];
                 }
             }
@@ -710,7 +709,6 @@ impl<'a> Scheme<'a> {
 
         // ---- new thermodynamic state from the conserved variables ----
         let mut max_verr: f64 = 0.0;
-        let mut reset_cells = vec![false; n];
         for i in 0..n {
             let p = s.p[i] + w.x[i][0];
             if !(p.is_finite() && p > 0.0) {
@@ -775,12 +773,12 @@ impl<'a> Scheme<'a> {
                     Phase::Liquid => s.liquid[i].rho,
                 };
                 let trace_frac = m / old_rho;
-                if trace_frac < ph.blend_min {
+                if trace_frac < ph.cryo.blend_min {
                     return reset(budget);
                 }
                 match fluid.temperature_from_energy(phase, p, e / m, guess) {
                     Ok((t, pr)) => Ok((t, pr, e, false)),
-                    Err(_) if trace_frac < ph.blend_max.max(TRACE_RESET_FRACTION) => {
+                    Err(_) if trace_frac < ph.cryo.blend_max.max(TRACE_RESET_FRACTION) => {
                         // the nearest temperature the table holds, which changes the trace's
                         // density (and so the cell's volume balance) least
                         let Some((lo, hi)) = fluid.phase_temperature_range(phase, p) else {
@@ -803,7 +801,7 @@ impl<'a> Scheme<'a> {
             };
             let (tg, gp, eg, reset_g) = recover(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, &mut budget)?;
             let (tl, lp, el, reset_l) = recover(Phase::Liquid, ml, next.e_l[i], tl_guess, tg, &mut budget)?;
-            reset_cells[i] = reset_g || reset_l;
+            w.reset[i] = reset_g || reset_l;
             next.e_g[i] = eg;
             next.e_l[i] = el;
             let ag = mg / gp.rho;
@@ -849,7 +847,7 @@ impl<'a> Scheme<'a> {
             }
         };
         // a phase's temperature and velocity are controlled only where it is present
-        let xmax = ph.blend_max;
+        let xmax = ph.cryo.blend_max;
         for i in 0..n {
             check(i, "pressure", s.p[i], next.p[i], SCALE_PRESSURE_PA);
             check(i, "void fraction", s.alpha[i], next.alpha[i], SCALE_VOID);
@@ -888,7 +886,7 @@ impl<'a> Scheme<'a> {
             let e = next.volume_error[i].abs();
             e > MAX_VOLUME_ERROR || e > VOLUME_ERROR_PRESSURE_FRACTION * next.p[i].max(SCALE_PRESSURE_PA) * kappa
         };
-        let grew = |i: usize| !reset_cells[i] && too_big(i) && next.volume_error[i].abs() > s.volume_error[i].abs();
+        let grew = |i: usize| !w.reset[i] && too_big(i) && next.volume_error[i].abs() > s.volume_error[i].abs();
         if let Some(i) = (0..n)
             .filter(|&i| grew(i))
             .max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs()))
@@ -978,20 +976,8 @@ impl<'a> Scheme<'a> {
 
     fn junction_state(&self, s: &State, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> JunctionState {
         let n = self.grid.n;
-        let cell = |i: usize| JunctionState {
-            alpha: s.alpha[i],
-            rho_g: s.gas[i].rho,
-            rho_l: s.liquid[i].rho,
-            mu_g: s.gas[i].mu,
-            mu_l: s.liquid[i].mu,
-        };
-        let bnd = |b: &BoundaryState| JunctionState {
-            alpha: b.alpha,
-            rho_g: b.gas.rho,
-            rho_l: b.liquid.rho,
-            mu_g: b.gas.mu,
-            mu_l: b.liquid.mu,
-        };
+        let cell = |i: usize| JunctionState { alpha: s.alpha[i], rho_g: s.gas[i].rho, rho_l: s.liquid[i].rho };
+        let bnd = |b: &BoundaryState| JunctionState { alpha: b.alpha, rho_g: b.gas.rho, rho_l: b.liquid.rho };
         if j > 0 && j < n {
             let (l, r) = (cell(j - 1), cell(j));
             let (wl, wr) = (self.grid.dx[j - 1], self.grid.dx[j]);
@@ -1000,8 +986,6 @@ impl<'a> Scheme<'a> {
                 alpha: f * l.alpha + (1.0 - f) * r.alpha,
                 rho_g: f * l.rho_g + (1.0 - f) * r.rho_g,
                 rho_l: f * l.rho_l + (1.0 - f) * r.rho_l,
-                mu_g: f * l.mu_g + (1.0 - f) * r.mu_g,
-                mu_l: f * l.mu_l + (1.0 - f) * r.mu_l,
             };
         }
         // boundary junction: the donor side by the mixture velocity, or by the pressure
@@ -1096,7 +1080,7 @@ impl<'a> Scheme<'a> {
         // physical, and through the convective term it would drag the neighbouring junctions.
         // (the junction's own fractions count too: fluid drawn from a liquid reservoir has no gas)
         let (side_g, side_l) = self.junction_min_fractions(s, j);
-        let pres = presence(side_g.min(side_l).min(a_g).min(a_l), ph.blend_min, ph.blend_max);
+        let pres = presence(side_g.min(side_l).min(a_g).min(a_l), ph.cryo.blend_min, ph.cryo.blend_max);
         drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
         let vm = if ph.virtual_mass { cryo::virtual_mass_coefficient(&local, cp) * a_g * a_l * rho_m } else { 0.0 };
         let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
@@ -1160,8 +1144,8 @@ impl<'a> Scheme<'a> {
         let a = s.alpha[i];
         let b = 1.0 - a;
         let v = g.volume[i];
-        let pres_g = presence(a, ph.blend_min, ph.blend_max);
-        let pres_l = presence(b, ph.blend_min, ph.blend_max);
+        let pres_g = presence(a, ph.cryo.blend_min, ph.cryo.blend_max);
+        let pres_l = presence(b, ph.cryo.blend_min, ph.cryo.blend_max);
         let gas_here = present(s.m_g[i], s.m_l[i]);
         let liq_here = present(s.m_l[i], s.m_g[i]);
         let tg = Lin::var(s.t_g[i], 2);
@@ -1343,8 +1327,6 @@ struct JunctionState {
     alpha: f64,
     rho_g: f64,
     rho_l: f64,
-    mu_g: f64,
-    mu_l: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -1382,6 +1364,21 @@ fn resize(w: &mut Work, n: usize) {
     w.cr.resize(n, Vector4::zeros());
     w.sources.resize(n, Sources::default());
     w.wetted.resize(n, 0.0);
+    for v in [
+        &mut w.heat_g,
+        &mut w.heat_l,
+        &mut w.dp,
+        &mut w.mass_g,
+        &mut w.mass_l,
+        &mut w.dvol_g,
+        &mut w.dvol_l,
+        &mut w.gamma_used,
+        &mut w.sg_used,
+        &mut w.sl_used,
+    ] {
+        v.resize(n, 0.0);
+    }
+    w.reset.resize(n, false);
     w.x.resize(n, Vector4::zeros());
 }
 
