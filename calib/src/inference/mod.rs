@@ -1,0 +1,1 @@
+//! Sensitivity analysis, local refinement, variance and posterior estimation, model comparison.
