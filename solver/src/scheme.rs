@@ -138,6 +138,8 @@ pub struct StepReport {
     pub max_volume_error: f64,
     /// The controlled variable that came closest to its limit (what holds the step down).
     pub limiting: &'static str,
+    /// Cell (or junction, for a velocity) of [`StepReport::limiting`].
+    pub limiting_index: usize,
     /// Budget terms.
     pub budget: StepBudget,
 }
@@ -151,8 +153,11 @@ pub const SCALE_PRESSURE_PA: f64 = 2.0e4;
 pub const SCALE_VOID: f64 = 0.2;
 /// Temperature scale, K.
 pub const SCALE_TEMPERATURE_K: f64 = 20.0;
-/// Velocity scale, m/s.
-pub const SCALE_VELOCITY_M_S: f64 = 2.0;
+/// Velocity scale, m/s: a velocity may change by 25 % of max(|v|, 10 m/s) in a step. Decision:
+/// near a quench front the slow phase velocities (a few m/s) flicker by tens of cm/s from step
+/// to step while the vapour leaves the line at 100–200 m/s; a 2 m/s floor held the NBS runs to
+/// millisecond steps for no change in the result (chilldown times within 3 s at 2 and 10 m/s).
+pub const SCALE_VELOCITY_M_S: f64 = 10.0;
 /// Relaxation time with which a disappearing phase is pulled to the velocity and temperature of
 /// the continuous one, s. A time constant rather than a multiple of 1/Δt, so that the pull does
 /// not change abruptly with the step size (the step control measures changes per step).
@@ -898,7 +903,16 @@ impl<'a> Scheme<'a> {
                 reason: "phase volumes do not fill the cell",
             });
         }
-        Ok((next, StepReport { change_ratio: ratio, max_volume_error: max_verr, limiting: worst.variable, budget }))
+        Ok((
+            next,
+            StepReport {
+                change_ratio: ratio,
+                max_volume_error: max_verr,
+                limiting: worst.variable,
+                limiting_index: worst.cell,
+                budget,
+            },
+        ))
     }
 
     /// Dissipated power (W) that cell `i` receives from its two junctions: each junction's
@@ -1154,9 +1168,17 @@ impl<'a> Scheme<'a> {
         let has_sat = sat.h_lg > 0.0;
         let local = self.local(s, i);
         let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[i]);
-        // the wetted fraction relaxes to its regime value with the time constant tauw
+        // The wetted fraction relaxes to its regime value with the time constant tauw, but never
+        // below the perimeter the liquid covers by geometry alone: a pool in the bottom of the
+        // tube touches δ/π of the wall at once (film boiling under it is the boiling curve's
+        // business). Decision: tauw is the time of the wetting *dynamics* (spreading into a film,
+        // drying); without the floor, a large tauw keeps the wall of a cell that has filled with
+        // liquid heating only the few per cent of vapour left in it, which is not physical and
+        // drives the cell to runaway pressures.
         let w_eq = if liq_here { cryo::wetted_fraction(&local, cp, &regime) } else { 0.0 };
-        let wetted = w_eq + (s.wetted[i] - w_eq) * (-dt / cp.wetting_time_constant.max(1e-9)).exp();
+        let w_geometric = if liq_here { cryo::stratified_half_angle(b) / std::f64::consts::PI * pres_l } else { 0.0 };
+        let wetted =
+            (w_eq + (s.wetted[i] - w_eq) * (-dt / cp.wetting_time_constant.max(1e-9)).exp()).max(w_geometric.min(w_eq));
         // wall heat transfer coefficients per unit fluid volume
         let per_vol = g.perimeter[i] / g.area_cell[i];
         let (hw_g, hw_l, boiling) = if ph.wall_heat_transfer {
