@@ -21,8 +21,13 @@
 //!   the budget is used, or earlier when a stop tolerance is met (and then says why).
 
 pub mod api;
+pub mod config;
+pub mod cost;
+pub mod data;
 pub mod inference;
+pub mod model;
 pub mod optim;
+pub mod problem;
 pub mod space;
 pub mod testfns;
 

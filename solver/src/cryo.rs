@@ -524,14 +524,16 @@ pub fn regime_quality(s: &Local) -> f64 {
     ((gg + G_REF_QUALITY * static_quality(s)) / (gg + gl + G_REF_QUALITY)).clamp(0.0, 1.0)
 }
 
+/// (3π/2)^(1/3), written out (cbrt is not evaluated at compile time; checked by a test).
+const CBRT_3PI_2: f64 = 1.676_539_193_219_743_5;
+
 /// Half-angle δ (rad) subtended at the pipe axis by the liquid of a stratified layer of liquid
 /// fraction `beta` (Biberg's explicit approximation, error below 0.002 rad; it is the θ_strat of
 /// Wojtan et al.: θ_dry = 2π − 2δ). The wetted perimeter fraction is δ/π and the interface chord
 /// D sin δ.
 pub fn stratified_half_angle(beta: f64) -> f64 {
     let b = if beta.is_finite() { beta.clamp(0.0, 1.0) } else { 0.0 };
-    let c = (1.5 * PI).cbrt();
-    let d = PI * b + c * (1.0 - 2.0 * b + b.cbrt() - (1.0 - b).cbrt())
+    let d = PI * b + CBRT_3PI_2 * (1.0 - 2.0 * b + b.cbrt() - (1.0 - b).cbrt())
         - b * (1.0 - b) * (1.0 - 2.0 * b) * (1.0 + 4.0 * (b * b + (1.0 - b) * (1.0 - b))) / 200.0;
     d.clamp(0.0, PI)
 }
@@ -1193,6 +1195,11 @@ pub fn virtual_mass_coefficient(_s: &Local, p: &CryoParams) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cbrt_constant_is_exact() {
+        assert!((CBRT_3PI_2 - (1.5 * PI).cbrt()).abs() < 1e-15);
+    }
     use crate::params::{REGISTRY, spec};
 
     const T_SAT: f64 = 77.355;

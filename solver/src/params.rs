@@ -551,7 +551,7 @@ impl ParameterSet {
 }
 
 /// The registry name closest to `name` (edit distance ≤ 3), for error messages.
-fn closest(name: &str) -> Option<&'static str> {
+pub fn closest(name: &str) -> Option<&'static str> {
     let lower = name.to_ascii_lowercase();
     REGISTRY
         .iter()

@@ -1,0 +1,486 @@
+//! The calibration file (TOML) and its JSON twin (the body of `POST /calibrations`).
+//!
+//! ```toml
+//! name = "NBS subcooled"
+//! seed = 11
+//! [[experiments]]            # one or more; paths relative to this file or absolute
+//! case = "subcooled-4.2atm.toml"
+//! data = "subcooled-4.2atm-data.csv"
+//! [[parameters]]             # the free parameters; bounds default to the registry's
+//! name = "Gwsc"
+//! lower = 0.3
+//! upper = 3.0
+//! scale = "log"              # or "linear" (default)
+//! [fixed]                    # other parameters held at given values (default: registry)
+//! tauw = 2.0
+//! [weights]                  # per quantity: η and σ
+//! wall_temperature_k = { weight = 1.0, sigma = 1.0 }
+//! [[stages]]                 # in order
+//! algorithm = "cmaes"
+//! budget = 500
+//! ```
+//!
+//! Parsing checks everything that can be checked without reading other files: unknown fields,
+//! parameter names (with the closest registry name suggested), bounds inside the registry's,
+//! stage options that apply to the stage's algorithm. Errors name the file and the field.
+
+use std::collections::BTreeMap;
+
+use cryofit_solver::params;
+use serde::{Deserialize, Serialize};
+
+use crate::cost::Weight;
+use crate::space::{FreeParameter, Scale, Space};
+
+/// One experiment: a case and its measured data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentRef {
+    /// Case file path (relative to the calibration file or absolute).
+    pub case: String,
+    /// Data file path (long-format CSV).
+    pub data: String,
+    /// Name used in reports; defaults to the case file's stem.
+    #[serde(default)]
+    pub name: Option<String>,
+}
+
+/// One free parameter as written in the file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterSpec {
+    pub name: String,
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
+    #[serde(default)]
+    pub scale: Option<ScaleName>,
+}
+
+/// `scale = "linear" | "log"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScaleName {
+    Linear,
+    Log,
+}
+
+/// The algorithms a stage can run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, PartialOrd, Ord, Hash)]
+#[serde(rename_all = "kebab-case")]
+pub enum AlgorithmName {
+    Sensitivity,
+    Morris,
+    DirectSearch,
+    Pattern,
+    Annealing,
+    Genetic,
+    Swarm,
+    Cmaes,
+    NelderMead,
+    Variance,
+    Mcmc,
+}
+
+impl AlgorithmName {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            AlgorithmName::Sensitivity => "sensitivity",
+            AlgorithmName::Morris => "morris",
+            AlgorithmName::DirectSearch => "direct-search",
+            AlgorithmName::Pattern => "pattern",
+            AlgorithmName::Annealing => "annealing",
+            AlgorithmName::Genetic => "genetic",
+            AlgorithmName::Swarm => "swarm",
+            AlgorithmName::Cmaes => "cmaes",
+            AlgorithmName::NelderMead => "nelder-mead",
+            AlgorithmName::Variance => "variance",
+            AlgorithmName::Mcmc => "mcmc",
+        }
+    }
+
+    /// The stage options that apply to this algorithm (besides `algorithm`, `budget`, `tolerance`).
+    pub fn options(self) -> &'static [&'static str] {
+        match self {
+            AlgorithmName::Sensitivity => &["step", "keep", "threshold"],
+            AlgorithmName::Morris => &["trajectories", "levels", "keep", "threshold"],
+            AlgorithmName::DirectSearch => &["points", "span"],
+            AlgorithmName::Pattern => &["step"],
+            AlgorithmName::Annealing => &["step", "population"],
+            AlgorithmName::Genetic => &["population", "mutation"],
+            AlgorithmName::Swarm => &["population"],
+            AlgorithmName::Cmaes => &["population", "sigma"],
+            AlgorithmName::NelderMead => &["step"],
+            AlgorithmName::Variance => &["restarts", "step"],
+            AlgorithmName::Mcmc => &["walkers", "burn_in", "spread"],
+        }
+    }
+}
+
+impl std::fmt::Display for AlgorithmName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One stage of the pipeline. Options that do not apply to the algorithm are errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    pub algorithm: AlgorithmName,
+    /// Evaluations; the stage runs exactly this many unless a `tolerance` ends it earlier.
+    pub budget: usize,
+    /// Stop tolerance (meaning depends on the algorithm); absent: run the whole budget.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Population / swarm / generation size.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub population: Option<usize>,
+    /// Initial step size in unit coordinates (CMA-ES).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+    /// Step: relative perturbation (sensitivity), unit-coordinate step (pattern, annealing,
+    /// Nelder–Mead simplex size), finite-difference step (variance).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub step: Option<f64>,
+    /// Sensitivity/Morris: keep at most this many parameters free for the following stages.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keep: Option<usize>,
+    /// Sensitivity/Morris: keep parameters whose sensitivity is at least this fraction of the largest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub threshold: Option<f64>,
+    /// Morris: number of trajectories.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectories: Option<usize>,
+    /// Morris: grid levels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<usize>,
+    /// Direct search: grid points per coordinate scan.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub points: Option<usize>,
+    /// Direct search: initial span of a scan in unit coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub span: Option<f64>,
+    /// Genetic: mutation probability per gene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mutation: Option<f64>,
+    /// Variance: Nelder–Mead restarts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restarts: Option<usize>,
+    /// MCMC: walkers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub walkers: Option<usize>,
+    /// MCMC: fraction of each chain discarded as burn-in.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub burn_in: Option<f64>,
+    /// MCMC: initial spread of the walkers around the start, unit coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spread: Option<f64>,
+}
+
+impl StageSpec {
+    /// A stage with only an algorithm and a budget.
+    pub fn new(algorithm: AlgorithmName, budget: usize) -> Self {
+        Self {
+            algorithm,
+            budget,
+            tolerance: None,
+            population: None,
+            sigma: None,
+            step: None,
+            keep: None,
+            threshold: None,
+            trajectories: None,
+            levels: None,
+            points: None,
+            span: None,
+            mutation: None,
+            restarts: None,
+            walkers: None,
+            burn_in: None,
+            spread: None,
+        }
+    }
+
+    /// Names of the options that are set.
+    fn set_options(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        let mut push = |name: &'static str, set: bool| {
+            if set {
+                v.push(name)
+            }
+        };
+        push("population", self.population.is_some());
+        push("sigma", self.sigma.is_some());
+        push("step", self.step.is_some());
+        push("keep", self.keep.is_some());
+        push("threshold", self.threshold.is_some());
+        push("trajectories", self.trajectories.is_some());
+        push("levels", self.levels.is_some());
+        push("points", self.points.is_some());
+        push("span", self.span.is_some());
+        push("mutation", self.mutation.is_some());
+        push("restarts", self.restarts.is_some());
+        push("walkers", self.walkers.is_some());
+        push("burn_in", self.burn_in.is_some());
+        push("spread", self.spread.is_some());
+        v
+    }
+
+    /// Checks option applicability and ranges; `at` is the field path for errors (`stages[2]`).
+    pub fn validate(&self, at: &str) -> Result<(), String> {
+        if self.budget == 0 {
+            return Err(format!("{at}.budget: must be at least 1"));
+        }
+        for name in self.set_options() {
+            if !self.algorithm.options().contains(&name) {
+                return Err(format!(
+                    "{at}.{name}: does not apply to algorithm \"{}\" (its options: {})",
+                    self.algorithm,
+                    self.algorithm.options().join(", ")
+                ));
+            }
+        }
+        let positive = |name: &str, v: Option<f64>| match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{at}.{name} = {x}: must be a finite number > 0")),
+            _ => Ok(()),
+        };
+        positive("tolerance", self.tolerance)?;
+        positive("sigma", self.sigma)?;
+        positive("step", self.step)?;
+        positive("span", self.span)?;
+        positive("spread", self.spread)?;
+        for (name, v) in [("threshold", self.threshold), ("mutation", self.mutation), ("burn_in", self.burn_in)] {
+            if let Some(x) = v
+                && !(x.is_finite() && (0.0..1.0).contains(&x))
+            {
+                return Err(format!("{at}.{name} = {x}: must be in [0, 1)"));
+            }
+        }
+        if self.keep == Some(0) {
+            return Err(format!("{at}.keep: must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// A calibration as written by the user.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationSpec {
+    pub name: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    #[serde(default)]
+    pub seed: u64,
+    pub experiments: Vec<ExperimentRef>,
+    pub parameters: Vec<ParameterSpec>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub fixed: BTreeMap<String, f64>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub weights: BTreeMap<String, WeightSpec>,
+    pub stages: Vec<StageSpec>,
+    /// Wall-clock limit of one simulation, s: a longer run is a failed evaluation.
+    #[serde(default = "default_max_evaluation_s")]
+    pub max_evaluation_s: f64,
+}
+
+/// Default per-evaluation wall-clock limit, s.
+pub const DEFAULT_MAX_EVALUATION_S: f64 = 120.0;
+
+fn default_max_evaluation_s() -> f64 {
+    DEFAULT_MAX_EVALUATION_S
+}
+
+/// `{ weight = η, sigma = σ }`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WeightSpec {
+    #[serde(default = "one")]
+    pub weight: f64,
+    pub sigma: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Why a calibration file is not usable.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}: {message}")]
+pub struct ConfigError {
+    pub file: String,
+    pub message: String,
+}
+
+impl CalibrationSpec {
+    /// Parses and validates TOML text; `file` names it in errors.
+    pub fn from_toml(text: &str, file: &str) -> Result<Self, ConfigError> {
+        let spec: Self = toml::from_str(text)
+            .map_err(|e| ConfigError { file: file.to_string(), message: e.to_string().trim().replace('\n', " ") })?;
+        spec.validate().map_err(|message| ConfigError { file: file.to_string(), message })?;
+        Ok(spec)
+    }
+
+    /// Checks names, bounds, weights and stages. Errors name the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.name.trim().is_empty() {
+            return Err("name: must not be empty".into());
+        }
+        if self.experiments.is_empty() {
+            return Err("experiments: at least one [[experiments]] entry is needed".into());
+        }
+        for (k, e) in self.experiments.iter().enumerate() {
+            if e.case.trim().is_empty() || e.data.trim().is_empty() {
+                return Err(format!("experiments[{k}]: case and data must name files"));
+            }
+        }
+        if self.parameters.is_empty() {
+            return Err("parameters: at least one free parameter ([[parameters]]) is needed".into());
+        }
+        self.space()?;
+        for (name, &v) in &self.fixed {
+            let spec = registry_spec(name).map_err(|m| format!("fixed.{name}: {m}"))?;
+            if !(v.is_finite() && v >= spec.lower && v <= spec.upper) {
+                return Err(format!(
+                    "fixed.{name} = {v}: outside the registry bounds [{}, {}]",
+                    spec.lower, spec.upper
+                ));
+            }
+            if self.parameters.iter().any(|p| &p.name == name) {
+                return Err(format!("fixed.{name}: is also a free parameter; list it in one place"));
+            }
+        }
+        for (q, w) in &self.weights {
+            if !crate::data::QUANTITIES.contains(&q.as_str()) {
+                return Err(format!("weights.{q}: unknown quantity (known: {})", crate::data::QUANTITIES.join(", ")));
+            }
+            self.weights().validate()?;
+            let _ = w;
+        }
+        if self.stages.is_empty() {
+            return Err("stages: at least one [[stages]] entry is needed".into());
+        }
+        for (k, s) in self.stages.iter().enumerate() {
+            s.validate(&format!("stages[{k}]"))?;
+        }
+        if !(self.max_evaluation_s.is_finite() && self.max_evaluation_s > 0.0) {
+            return Err(format!("max_evaluation_s = {}: must be a finite number > 0", self.max_evaluation_s));
+        }
+        Ok(())
+    }
+
+    /// The free-parameter space: bounds default to the registry's and must lie within them.
+    pub fn space(&self) -> Result<Space, String> {
+        let mut free = Vec::new();
+        for (k, p) in self.parameters.iter().enumerate() {
+            let spec = registry_spec(&p.name).map_err(|m| format!("parameters[{k}].name: {m}"))?;
+            let lower = p.lower.unwrap_or(spec.lower);
+            let upper = p.upper.unwrap_or(spec.upper);
+            if !(lower.is_finite() && upper.is_finite() && lower < upper) {
+                return Err(format!(
+                    "parameters[{k}] ({}): bounds must be finite with lower < upper (got lower = {lower}, upper = {upper})",
+                    p.name
+                ));
+            }
+            if lower < spec.lower || upper > spec.upper {
+                return Err(format!(
+                    "parameters[{k}] ({}): bounds [{lower}, {upper}] leave the registry's [{}, {}]",
+                    p.name, spec.lower, spec.upper
+                ));
+            }
+            let scale = match p.scale.unwrap_or(ScaleName::Linear) {
+                ScaleName::Linear => Scale::Linear,
+                ScaleName::Log => Scale::Log,
+            };
+            free.push(FreeParameter { name: p.name.clone(), lower, upper, scale });
+        }
+        Space::new(free).map_err(|e| format!("parameters: {e}"))
+    }
+
+    /// The weights as the cost uses them.
+    pub fn weights(&self) -> crate::cost::Weights {
+        crate::cost::Weights(
+            self.weights.iter().map(|(q, w)| (q.clone(), Weight { weight: w.weight, sigma: w.sigma })).collect(),
+        )
+    }
+
+    /// Total evaluation budget of all stages (each evaluation runs every experiment).
+    pub fn budget(&self) -> usize {
+        self.stages.iter().map(|s| s.budget).sum()
+    }
+}
+
+fn registry_spec(name: &str) -> Result<&'static params::ParamSpec, String> {
+    params::spec(name).ok_or_else(|| {
+        let hint = params::closest(name).map(|s| format!("; did you mean `{s}`?")).unwrap_or_default();
+        format!("unknown parameter `{name}`{hint} (`cryofit params` lists them)")
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+name = "t"
+seed = 3
+[[experiments]]
+case = "a.toml"
+data = "a.csv"
+[[parameters]]
+name = "Gwsc"
+lower = 0.3
+upper = 3.0
+scale = "log"
+[[parameters]]
+name = "tauw"
+[fixed]
+Gisc = 2.0
+[weights]
+wall_temperature_k = { weight = 1.0, sigma = 2.0 }
+[[stages]]
+algorithm = "cmaes"
+budget = 50
+population = 8
+"#;
+
+    #[test]
+    fn parses_a_good_file() {
+        let c = CalibrationSpec::from_toml(GOOD, "c.toml").unwrap();
+        assert_eq!(c.seed, 3);
+        let s = c.space().unwrap();
+        assert_eq!(s.dim(), 2);
+        assert_eq!(s.params()[0].scale, Scale::Log);
+        let reg = params::spec("tauw").unwrap();
+        assert_eq!((s.params()[1].lower, s.params()[1].upper), (reg.lower, reg.upper));
+        assert_eq!(c.budget(), 50);
+        assert_eq!(c.max_evaluation_s, DEFAULT_MAX_EVALUATION_S);
+        // JSON round trip (the REST body)
+        let json = serde_json::to_string(&c).unwrap();
+        let back: CalibrationSpec = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        let bad = |from: &str, to: &str| CalibrationSpec::from_toml(&GOOD.replace(from, to), "c.toml").unwrap_err();
+        let e = bad("name = \"Gwsc\"", "name = \"Gwscc\"");
+        assert!(e.to_string().contains("parameters[0].name: unknown parameter `Gwscc`; did you mean `Gwsc`?"), "{e}");
+        let e = bad("upper = 3.0", "upper = 0.2");
+        assert!(e.to_string().contains("lower < upper"), "{e}");
+        let e = bad("upper = 3.0", "upper = 300.0");
+        assert!(e.to_string().contains("leave the registry"), "{e}");
+        let e = bad("population = 8", "walkers = 8");
+        assert!(e.to_string().contains("stages[0].walkers: does not apply to algorithm \"cmaes\""), "{e}");
+        let e = bad("budget = 50", "budget = 50\nfoo = 1");
+        assert!(e.to_string().contains("unknown field `foo`"), "{e}");
+        let e = bad("Gisc = 2.0", "Gwsc = 2.0");
+        assert!(e.to_string().contains("fixed.Gwsc: is also a free parameter"), "{e}");
+        let e = bad("sigma = 2.0", "sigma = 0.0");
+        assert!(e.to_string().contains("weights.wall_temperature_k.sigma"), "{e}");
+        let e = bad("algorithm = \"cmaes\"", "algorithm = \"cma\"");
+        assert!(e.to_string().starts_with("c.toml: "), "{e}");
+    }
+}

@@ -1,0 +1,174 @@
+//! The cost: the paper's weighted sum of squares (eq. "cost"), generalised to several
+//! quantities, stations and experiments.
+//!
+//! For each measured series (station, quantity) that carries a weight,
+//! `S = Σ_t η_q ((y_model(t) − y_data(t)) / σ_q)²`, the model output interpolated linearly to the
+//! data times and stations matched by name. With σ_q the measurement noise and η_q = 1, `S/2` is
+//! the negative log-likelihood of independent Gaussian errors (up to a constant).
+
+use std::collections::BTreeMap;
+
+use crate::data::{Dataset, SeriesKey};
+
+/// Weight η and noise σ of one quantity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize), serde(deny_unknown_fields))]
+pub struct Weight {
+    /// η: relative weight (dimensionless, ≥ 0).
+    #[cfg_attr(feature = "serde", serde(default = "one"))]
+    pub weight: f64,
+    /// σ: measurement noise in the quantity's unit (> 0).
+    pub sigma: f64,
+}
+
+#[cfg(feature = "serde")]
+fn one() -> f64 {
+    1.0
+}
+
+/// Noise assumed for a quantity when the calibration gives no weights: 1 K for temperatures,
+/// 1 kPa for pressure, 0.05 for void fraction, 5 % of typical values for the others.
+pub fn default_sigma(quantity: &str) -> f64 {
+    match quantity {
+        q if q.ends_with("temperature_k") => 1.0,
+        "pressure_pa" => 1000.0,
+        "void_fraction" => 0.05,
+        "gas_velocity_m_s" | "liquid_velocity_m_s" => 0.5,
+        "wall_heat_flux_w_m2" => 1000.0,
+        "mass_flow_kg_s" => 0.005,
+        _ => 1.0,
+    }
+}
+
+/// Weights per quantity. Empty means: every quantity present in the data, weight 1 and
+/// [`default_sigma`]; otherwise only the listed quantities count.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Weights(pub BTreeMap<String, Weight>);
+
+impl Weights {
+    /// The weight of `quantity`, or `None` when it does not enter the cost.
+    pub fn get(&self, quantity: &str) -> Option<Weight> {
+        if self.0.is_empty() {
+            Some(Weight { weight: 1.0, sigma: default_sigma(quantity) })
+        } else {
+            self.0.get(quantity).copied()
+        }
+    }
+
+    /// Checks every weight: η finite and ≥ 0, σ finite and > 0.
+    pub fn validate(&self) -> Result<(), String> {
+        for (q, w) in &self.0 {
+            if !(w.weight.is_finite() && w.weight >= 0.0) {
+                return Err(format!("weights.{q}.weight = {}: must be a finite number ≥ 0", w.weight));
+            }
+            if !(w.sigma.is_finite() && w.sigma > 0.0) {
+                return Err(format!("weights.{q}.sigma = {}: must be a finite number > 0", w.sigma));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Per-series contribution to the cost.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SeriesFit {
+    /// Weighted sum of squares of this series.
+    pub cost: f64,
+    /// Root-mean-square difference model − data, in the quantity's unit.
+    pub rms: f64,
+    /// Number of data points.
+    pub points: usize,
+}
+
+/// The cost of one model output against one dataset, with its parts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    pub cost: f64,
+    pub series: BTreeMap<SeriesKey, SeriesFit>,
+}
+
+/// Cost of `model` output against `data`. Errors name the station/quantity the model lacks or
+/// the data time it does not cover.
+pub fn fit(model: &Dataset, data: &Dataset, weights: &Weights) -> Result<Fit, String> {
+    let mut total = 0.0;
+    let mut series = BTreeMap::new();
+    for (key, d) in &data.series {
+        let Some(w) = weights.get(&key.1) else { continue };
+        let m =
+            model.series.get(key).ok_or_else(|| format!("the model output has no {} at station `{}`", key.1, key.0))?;
+        let mut sum = 0.0;
+        let mut sq = 0.0;
+        for (&t, &y) in d.times.iter().zip(&d.values) {
+            let ym = m.at(t).ok_or_else(|| {
+                format!(
+                    "station `{}`, {}: the model output covers {}–{} s, not the data time {t} s",
+                    key.0,
+                    key.1,
+                    m.times.first().copied().unwrap_or(0.0),
+                    m.times.last().copied().unwrap_or(0.0)
+                )
+            })?;
+            let r = ym - y;
+            if !r.is_finite() {
+                return Err(format!("station `{}`, {}: the model value at {t} s is not finite", key.0, key.1));
+            }
+            sq += r * r;
+            sum += w.weight * (r / w.sigma) * (r / w.sigma);
+        }
+        let n = d.times.len();
+        total += sum;
+        series.insert(key.clone(), SeriesFit { cost: sum, rms: (sq / n.max(1) as f64).sqrt(), points: n });
+    }
+    Ok(Fit { cost: total, series })
+}
+
+/// Number of data points that enter the cost.
+pub fn counted_points(data: &Dataset, weights: &Weights) -> usize {
+    data.series.iter().filter(|(k, _)| weights.get(&k.1).is_some()).map(|(_, s)| s.times.len()).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::data::Series;
+
+    fn ds(points: &[(f64, f64)]) -> Dataset {
+        let mut d = Dataset::default();
+        d.series.insert(
+            ("TS1".into(), "wall_temperature_k".into()),
+            Series {
+                x_m: 1.0,
+                times: points.iter().map(|p| p.0).collect(),
+                values: points.iter().map(|p| p.1).collect(),
+            },
+        );
+        d
+    }
+
+    #[test]
+    fn weighted_sum_of_squares_at_interpolated_times() {
+        let model = ds(&[(0.0, 300.0), (10.0, 200.0)]);
+        let data = ds(&[(0.0, 301.0), (5.0, 248.0)]);
+        let w = Weights([("wall_temperature_k".to_string(), Weight { weight: 2.0, sigma: 0.5 })].into());
+        let f = fit(&model, &data, &w).unwrap();
+        // residuals −1 and +2, σ = 0.5, η = 2: 2 (4 + 16) = 40
+        assert!((f.cost - 40.0).abs() < 1e-12);
+        let s = f.series.values().next().unwrap();
+        assert!((s.rms - (2.5f64).sqrt()).abs() < 1e-12 && s.points == 2);
+        // unlisted quantity: ignored
+        let w2 = Weights([("pressure_pa".to_string(), Weight { weight: 1.0, sigma: 1.0 })].into());
+        assert_eq!(fit(&model, &data, &w2).unwrap().cost, 0.0);
+        // empty weights: defaults (σ = 1 K)
+        assert!((fit(&model, &data, &Weights::default()).unwrap().cost - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn missing_station_or_time_is_an_error() {
+        let model = ds(&[(0.0, 300.0), (4.0, 200.0)]);
+        let data = ds(&[(5.0, 248.0)]);
+        assert!(fit(&model, &data, &Weights::default()).unwrap_err().contains("not the data time 5"));
+        let mut other = Dataset::default();
+        other.series.insert(("TS9".into(), "wall_temperature_k".into()), data.series.values().next().unwrap().clone());
+        assert!(fit(&model, &other, &Weights::default()).unwrap_err().contains("station `TS9`"));
+    }
+}
