@@ -12,9 +12,13 @@ use cryofit_solver::params::ParameterSet;
 use crate::data::{Dataset, Series};
 
 /// A model evaluated at named parameter values (registry names, physical units).
-pub trait Model: Send + Sync {
+pub trait Model: Send + Sync + 'static {
     /// The model's time series, or why the run failed (for example where the solver diverged).
     fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, String>;
+
+    /// The model as `Any`, so that callers can reach a concrete model's own methods (for
+    /// example the solver's full output for reports).
+    fn as_any(&self) -> &dyn std::any::Any;
 }
 
 /// The two-fluid solver on one case.
@@ -87,5 +91,9 @@ pub fn probes_dataset(probes: &[driver::Observation]) -> Dataset {
 impl Model for SolverModel {
     fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, String> {
         self.run(parameters).map(|out| probes_dataset(&out.probes))
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 }

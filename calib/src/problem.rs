@@ -85,3 +85,45 @@ impl Problem {
         self.experiments.iter().map(|e| cost::counted_points(&e.data, &self.weights)).sum()
     }
 }
+
+/// Builds one experiment from the texts of its case and data files (`*_label` name them in
+/// errors): checks that every measured station exists in the case, under the same name, and that
+/// the case runs at least as long as the data.
+///
+/// `fixed` holds parameter values that are not free; `max_evaluation_s` bounds each run's
+/// computing time (a longer run is a failed evaluation).
+#[allow(clippy::too_many_arguments)]
+pub fn experiment_from_texts(
+    name: &str,
+    case_text: &str,
+    case_label: &str,
+    data_text: &str,
+    data_label: &str,
+    fluid: impl FnOnce(&str) -> Result<Arc<cryofit_solver::fluids::FluidTable>, String>,
+    fixed: &cryofit_solver::params::ParameterSet,
+    max_evaluation_s: Option<f64>,
+) -> Result<Experiment, String> {
+    let case = cryofit_solver::case::Case::from_toml(case_text, case_label).map_err(|e| e.to_string())?;
+    let data = Dataset::from_csv(data_text, data_label).map_err(|e| e.to_string())?;
+    for (station, quantity) in data.series.keys() {
+        if !case.stations.iter().any(|s| &s.name == station) {
+            let known: Vec<&str> = case.stations.iter().map(|s| s.name.as_str()).collect();
+            return Err(format!(
+                "{data_label}: station `{station}` ({quantity}) is not a station of {case_label} (its stations: {})",
+                known.join(", ")
+            ));
+        }
+    }
+    if data.end_time() > case.time.end_s {
+        return Err(format!(
+            "{data_label}: the data run to {} s but {case_label} ends at time.end_s = {} s; lengthen the case",
+            data.end_time(),
+            case.time.end_s
+        ));
+    }
+    let table = fluid(&case.fluid.name).map_err(|e| format!("{case_label}: {e}"))?;
+    let model = crate::model::SolverModel::new(case, table, fixed)
+        .map_err(|e| format!("{case_label}: {e}"))?
+        .with_wall_limit(max_evaluation_s);
+    Ok(Experiment { name: name.to_string(), model: Arc::new(model), data })
+}

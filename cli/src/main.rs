@@ -1,8 +1,10 @@
 //! `cryofit`: the one binary users run. Parses the command line and hands over to a command.
 
 mod bench;
+mod calibrate;
 mod fluid_source;
 mod params_cmd;
+mod predict;
 mod props;
 mod simulate;
 
@@ -28,6 +30,10 @@ enum Command {
     Props(props::PropsArgs),
     /// Run a case file and write probes.csv, profiles.csv and summary.json.
     Simulate(simulate::SimulateArgs),
+    /// Fit registry parameters to measured data (stages: sensitivity, global search, variance, posterior).
+    Calibrate(calibrate::CalibrateArgs),
+    /// Predict an untested case over the posterior of a calibration (median and 5–95 % bands).
+    Predict(predict::PredictArgs),
     /// List the model parameters: name, group, default, bounds, unit and meaning.
     Params(params_cmd::ParamsArgs),
     /// Measurements too heavy for the test suite (robustness over the parameter space).
@@ -64,6 +70,8 @@ fn main() -> ExitCode {
         Command::Props(args) => props::run(&args),
         Command::Bench(cmd) => bench::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
+        Command::Calibrate(args) => calibrate::run(&args),
+        Command::Predict(args) => predict::run(&args),
         Command::Params(args) => params_cmd::run(&args),
     };
     match result {

@@ -103,7 +103,7 @@ fn split_assignment(arg: &str) -> Option<(&str, &str)> {
 }
 
 /// Reads a `--params` file: a flat TOML table of `name = number`.
-fn read_params_file(path: &Path) -> Result<ParameterSet> {
+pub(crate) fn read_params_file(path: &Path) -> Result<ParameterSet> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {file}"))?;
     let table: toml::Table = toml::from_str(&text).map_err(|e| {
@@ -183,11 +183,11 @@ fn round_sig(v: f64) -> f64 {
 }
 
 /// A CSV field, quoted when it contains a separator, a quote or a line break.
-fn csv_field(s: &str) -> String {
+pub(crate) fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 
-fn probes_csv(probes: &[Observation]) -> String {
+pub(crate) fn probes_csv(probes: &[Observation]) -> String {
     let mut s = String::from("time_s,station,x_m,quantity,value\n");
     for o in probes {
         let _ = writeln!(
@@ -232,7 +232,7 @@ fn summary_json(
 
 /// Creates `dir` and writes every file under a temporary name first, then renames them all: a
 /// failed write leaves no partial file behind (and leaves earlier results in place).
-fn write_outputs(dir: &Path, files: &[(&str, String)]) -> Result<()> {
+pub(crate) fn write_outputs(dir: &Path, files: &[(&str, String)]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pid = std::process::id();
     let temps: Vec<(PathBuf, PathBuf)> =

@@ -309,7 +309,7 @@ pub fn run(
         }
         for (name, _, c) in &stations {
             let tw = s.t_w[*c];
-            if chill[name].is_none() && tw < inlet_tl + 15.0 {
+            if chill[name].is_none() && tw < inlet_tl + CHILLDOWN_MARGIN_K {
                 chill.insert(name.clone(), Some(s.time));
             }
             if quench[name].is_none() && tw < 150.0 {
@@ -507,6 +507,10 @@ fn total_energy(s: &State, g: &Grid, gravity: bool) -> f64 {
     }
     total
 }
+
+/// Chilldown time at a station: the first time its wall falls below the inlet liquid temperature
+/// plus this margin, K (DESIGN.md §5).
+pub const CHILLDOWN_MARGIN_K: f64 = 15.0;
 
 /// The quantities written for every station, in order (DESIGN.md §3.2).
 pub const PROBE_QUANTITIES: [&str; 10] = [

@@ -1,0 +1,69 @@
+//! Draws from a multivariate Gaussian (the variance stage's approximation of the posterior), for
+//! predictions when no MCMC stage ran.
+
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// `n` draws of N(mean, cov), each clamped into `[lower_i, upper_i]`. The covariance is
+/// factorised by Cholesky; a covariance that is not positive definite gets its eigenvalues
+/// floored at 1e-12 of the largest first.
+pub fn gaussian_draws(
+    mean: &[f64],
+    cov: &[Vec<f64>],
+    bounds: &[(f64, f64)],
+    n: usize,
+    seed: u64,
+) -> Result<Vec<Vec<f64>>, String> {
+    let d = mean.len();
+    if cov.len() != d || cov.iter().any(|r| r.len() != d) || bounds.len() != d {
+        return Err(format!("covariance must be {d} × {d} and there must be {d} bounds"));
+    }
+    if mean.iter().chain(cov.iter().flatten()).any(|v| !v.is_finite()) {
+        return Err("the mean and covariance must be finite".into());
+    }
+    let c = DMatrix::from_fn(d, d, |i, j| 0.5 * (cov[i][j] + cov[j][i]));
+    let l = match c.clone().cholesky() {
+        Some(ch) => ch.l(),
+        None => {
+            let eig = c.symmetric_eigen();
+            let top = eig.eigenvalues.iter().fold(0.0f64, |m, &v| m.max(v.abs())).max(1e-300);
+            let vals = eig.eigenvalues.map(|v| v.max(1e-12 * top));
+            let fixed = &eig.eigenvectors * DMatrix::from_diagonal(&vals) * eig.eigenvectors.transpose();
+            fixed.cholesky().ok_or("the covariance cannot be factorised")?.l()
+        }
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let m = DVector::from_column_slice(mean);
+    Ok((0..n)
+        .map(|_| {
+            let z = DVector::from_fn(d, |_, _| StandardNormal.sample(&mut rng));
+            let x = &m + &l * z;
+            x.iter().zip(bounds).map(|(&v, &(lo, hi))| v.clamp(lo, hi)).collect()
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_mean_and_covariance() {
+        let cov = vec![vec![4.0, 1.2], vec![1.2, 1.0]];
+        let b = [(-1e9, 1e9), (-1e9, 1e9)];
+        let x = gaussian_draws(&[1.0, -2.0], &cov, &b, 40_000, 7).unwrap();
+        let n = x.len() as f64;
+        let m0 = x.iter().map(|v| v[0]).sum::<f64>() / n;
+        let m1 = x.iter().map(|v| v[1]).sum::<f64>() / n;
+        let c01 = x.iter().map(|v| (v[0] - m0) * (v[1] - m1)).sum::<f64>() / n;
+        let c00 = x.iter().map(|v| (v[0] - m0).powi(2)).sum::<f64>() / n;
+        assert!((m0 - 1.0).abs() < 0.03 && (m1 + 2.0).abs() < 0.015, "{m0} {m1}");
+        assert!((c00 - 4.0).abs() < 0.1 && (c01 - 1.2).abs() < 0.05, "{c00} {c01}");
+        // clamped into the bounds
+        let y = gaussian_draws(&[0.0], &[vec![1.0]], &[(-0.5, 0.5)], 100, 1).unwrap();
+        assert!(y.iter().all(|v| v[0].abs() <= 0.5));
+        assert!(gaussian_draws(&[0.0], &[vec![f64::NAN]], &[(0.0, 1.0)], 1, 1).is_err());
+    }
+}

@@ -1,0 +1,502 @@
+//! A calibration's stage pipeline: sensitivity → direct search → CMA-ES → variance → posterior,
+//! or any sequence of stages, each starting from the previous one's result.
+//!
+//! [`Pipeline`] is itself ask/tell: it hands out [`Job`]s (a candidate in the full free-parameter
+//! space, with physical values by name) and takes costs back in any order. Candidate ids are
+//! global across stages. A sensitivity or Morris stage narrows the free set of the stages after it
+//! to its suggested parameters (the others stay at the values of the best point so far). The whole
+//! state serialises with the crate feature `serde`, so a coordinator can persist it after every
+//! tell and resume it bit-identically.
+
+use std::collections::BTreeMap;
+
+#[cfg(feature = "serde")]
+use serde::{Deserialize, Serialize};
+
+use crate::api::{Best, Evaluation, Optimizer, Outcome, StopReason, TellError};
+use crate::config::{AlgorithmName, StageSpec};
+use crate::inference::{
+    self, EnsembleSampler, InferenceAlgorithm, InferenceSummary, McmcOptions, Morris, MorrisOptions, NelderMead,
+    NelderMeadOptions, Sensitivity, SensitivityOptions, Variance, VarianceOptions,
+};
+use crate::optim::{
+    AnnealingOptions, CmaesOptions, DirectSearchOptions, GeneticOptions, GlobalAlgorithm, GlobalOptions,
+    PatternOptions, SwarmOptions,
+};
+use crate::space::Space;
+
+/// The algorithm of the running stage.
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(rename_all = "snake_case"))]
+pub enum StageAlgorithm {
+    Global(GlobalAlgorithm),
+    Inference(InferenceAlgorithm),
+}
+
+impl StageAlgorithm {
+    fn inner(&self) -> &dyn Optimizer {
+        match self {
+            Self::Global(a) => a,
+            Self::Inference(a) => a,
+        }
+    }
+
+    fn inner_mut(&mut self) -> &mut dyn Optimizer {
+        match self {
+            Self::Global(a) => a,
+            Self::Inference(a) => a,
+        }
+    }
+}
+
+/// Builds the algorithm of `spec` on `space` (the stage's free parameters), starting at `start`.
+pub fn build_stage(
+    spec: &StageSpec,
+    space: &Space,
+    start: Option<&[f64]>,
+    seed: u64,
+) -> Result<StageAlgorithm, String> {
+    let d = space.dim();
+    let b = spec.budget;
+    let name = spec.algorithm;
+    let global = |o: GlobalOptions| {
+        GlobalAlgorithm::new(d, start, o, b, seed).map(StageAlgorithm::Global).map_err(|e| format!("{name}: {e}"))
+    };
+    let inf = |r: Result<InferenceAlgorithm, inference::InferenceError>| {
+        r.map(StageAlgorithm::Inference).map_err(|e| e.to_string())
+    };
+    match name {
+        AlgorithmName::Sensitivity => {
+            let mut o = SensitivityOptions::default();
+            o.relative_step = spec.step.unwrap_or(o.relative_step);
+            o.max_free = spec.keep.unwrap_or(o.max_free);
+            o.free_fraction = spec.threshold.unwrap_or(o.free_fraction);
+            inf(Sensitivity::new(space, start, o, b, seed).map(InferenceAlgorithm::Sensitivity))
+        }
+        AlgorithmName::Morris => {
+            let mut o = MorrisOptions::default();
+            o.trajectories = spec.trajectories.unwrap_or(o.trajectories);
+            o.levels = spec.levels.unwrap_or(o.levels);
+            o.max_free = spec.keep.unwrap_or(o.max_free);
+            o.free_fraction = spec.threshold.unwrap_or(o.free_fraction);
+            inf(Morris::new(d, start, o, b, seed).map(InferenceAlgorithm::Morris))
+        }
+        AlgorithmName::NelderMead => {
+            let mut o = NelderMeadOptions::default();
+            o.initial_step = spec.step.unwrap_or(o.initial_step);
+            if let Some(t) = spec.tolerance {
+                o.f_tol = t;
+            }
+            inf(NelderMead::new(d, start, o, b, seed).map(InferenceAlgorithm::NelderMead))
+        }
+        AlgorithmName::Variance => {
+            let mut o = VarianceOptions::default();
+            o.restarts = spec.restarts.unwrap_or(o.restarts);
+            o.hessian_step = spec.step.unwrap_or(o.hessian_step);
+            if let Some(t) = spec.tolerance {
+                o.f_tol = t;
+            }
+            inf(Variance::new(space, start, o, b, seed).map(|v| InferenceAlgorithm::Variance(Box::new(v))))
+        }
+        AlgorithmName::Mcmc => {
+            let mut o = McmcOptions::default();
+            o.walkers = spec.walkers.or(o.walkers);
+            o.burn_in = spec.burn_in.unwrap_or(o.burn_in);
+            o.initial_spread = spec.spread.unwrap_or(o.initial_spread);
+            inf(EnsembleSampler::new(space, start, o, b, seed).map(|m| InferenceAlgorithm::Mcmc(Box::new(m))))
+        }
+        AlgorithmName::DirectSearch => {
+            let mut o = DirectSearchOptions::default();
+            o.points = spec.points.unwrap_or(o.points);
+            o.initial_span = spec.span.unwrap_or(o.initial_span);
+            o.tolerance = spec.tolerance;
+            global(GlobalOptions::DirectSearch(o))
+        }
+        AlgorithmName::Pattern => {
+            let mut o = PatternOptions::default();
+            o.initial_step = spec.step.unwrap_or(o.initial_step);
+            o.tolerance = spec.tolerance;
+            global(GlobalOptions::Pattern(o))
+        }
+        AlgorithmName::Annealing => {
+            let mut o = AnnealingOptions::default();
+            o.initial_step = spec.step.unwrap_or(o.initial_step);
+            o.batch = spec.population.unwrap_or(o.batch);
+            o.tolerance = spec.tolerance;
+            global(GlobalOptions::Annealing(o))
+        }
+        AlgorithmName::Genetic => {
+            let mut o = GeneticOptions::default();
+            o.population = spec.population.or(o.population);
+            o.mutation_rate = spec.mutation.or(o.mutation_rate);
+            o.tolerance = spec.tolerance;
+            global(GlobalOptions::Genetic(o))
+        }
+        AlgorithmName::Swarm => {
+            let mut o = SwarmOptions::default();
+            o.swarm = spec.population.or(o.swarm);
+            o.tolerance = spec.tolerance;
+            global(GlobalOptions::Swarm(o))
+        }
+        AlgorithmName::Cmaes => {
+            let mut o = CmaesOptions::default();
+            o.population = spec.population.or(o.population);
+            o.sigma = spec.sigma.unwrap_or(o.sigma);
+            o.tolfun = spec.tolerance;
+            global(GlobalOptions::Cmaes(o))
+        }
+    }
+}
+
+/// One evaluation to run: every experiment at these parameter values.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+pub struct Job {
+    /// Global id, unique within the calibration.
+    pub id: u64,
+    /// Index of the stage that asked for it.
+    pub stage: usize,
+    /// Unit coordinates in the full free space.
+    pub unit: Vec<f64>,
+    /// Physical values of the free parameters, by name.
+    pub parameters: BTreeMap<String, f64>,
+}
+
+/// What a finished stage did.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+pub struct StageReport {
+    pub index: usize,
+    pub algorithm: AlgorithmName,
+    pub budget: usize,
+    /// Evaluations the stage ran.
+    pub evaluations: usize,
+    pub failed_evaluations: usize,
+    /// Parameters free during the stage.
+    pub free: Vec<String>,
+    /// Best cost the stage found (`None` when every evaluation failed).
+    pub best_cost: Option<f64>,
+    /// Its parameters (all free parameters of the calibration, by name).
+    pub best_parameters: BTreeMap<String, f64>,
+    /// Why it stopped.
+    pub stop: String,
+    /// Sensitivity, variance and posterior details.
+    pub details: Option<InferenceSummary>,
+    /// Posterior draws of an MCMC stage: physical values of the stage's free parameters
+    /// ([`StageReport::free`] order), [`POSTERIOR_DRAWS`] of them.
+    pub posterior_draws: Option<Vec<Vec<f64>>>,
+}
+
+/// Number of posterior draws an MCMC stage keeps for predictions.
+pub const POSTERIOR_DRAWS: usize = 1000;
+
+/// The stage that is running.
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+struct Running {
+    index: usize,
+    /// Indices (into the full space) of the free parameters of this stage.
+    active: Vec<usize>,
+    algorithm: StageAlgorithm,
+    /// local candidate id → global job id, for handed-out candidates not yet told.
+    outstanding: BTreeMap<u64, u64>,
+    evaluations: usize,
+    failed: usize,
+    /// Best (cost, job id, full unit point) of this stage.
+    best: Option<(f64, u64, Vec<f64>)>,
+}
+
+/// A handed-out job: the stage algorithm's candidate id and the job's full unit point.
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+struct Pending {
+    local: u64,
+    unit: Vec<f64>,
+}
+
+/// The whole calibration: stages in order, the best point so far, progress counts.
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+pub struct Pipeline {
+    space: Space,
+    stages: Vec<StageSpec>,
+    seed: u64,
+    /// Full unit point that inactive parameters are held at (the best so far, or the start).
+    anchor: Vec<f64>,
+    /// Free parameters of the next stage.
+    active: Vec<usize>,
+    running: Option<Running>,
+    next_stage: usize,
+    next_id: u64,
+    /// Outstanding jobs by id.
+    jobs: BTreeMap<u64, Pending>,
+    best: Option<Best>,
+    evaluations: usize,
+    failed: usize,
+    reports: Vec<StageReport>,
+    error: Option<String>,
+}
+
+/// Seed of stage `k`: distinct, reproducible streams per stage.
+fn stage_seed(seed: u64, k: usize) -> u64 {
+    seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+}
+
+impl Pipeline {
+    /// A pipeline over `space` starting at `start` (full unit coordinates, e.g. the registry
+    /// defaults). Every stage is built once up front on the full space, so that bad options or a
+    /// budget too small for an algorithm are reported before anything runs.
+    pub fn new(space: Space, stages: Vec<StageSpec>, start: Vec<f64>, seed: u64) -> Result<Self, String> {
+        if stages.is_empty() {
+            return Err("stages: at least one stage is needed".into());
+        }
+        if start.len() != space.dim() || start.iter().any(|u| !(0.0..=1.0).contains(u)) {
+            return Err(format!("start point must have {} unit coordinates in [0, 1]", space.dim()));
+        }
+        for (k, s) in stages.iter().enumerate() {
+            s.validate(&format!("stages[{k}]"))?;
+            build_stage(s, &space, Some(&start), stage_seed(seed, k)).map_err(|e| format!("stages[{k}]: {e}"))?;
+        }
+        let active = (0..space.dim()).collect();
+        Ok(Self {
+            space,
+            stages,
+            seed,
+            anchor: start,
+            active,
+            running: None,
+            next_stage: 0,
+            next_id: 0,
+            jobs: BTreeMap::new(),
+            best: None,
+            evaluations: 0,
+            failed: 0,
+            reports: Vec::new(),
+            error: None,
+        })
+    }
+
+    pub fn space(&self) -> &Space {
+        &self.space
+    }
+
+    pub fn stages(&self) -> &[StageSpec] {
+        &self.stages
+    }
+
+    /// Reports of the finished stages.
+    pub fn reports(&self) -> &[StageReport] {
+        &self.reports
+    }
+
+    /// Index of the running stage (or of the next one to start).
+    pub fn stage(&self) -> usize {
+        self.running.as_ref().map_or(self.next_stage, |r| r.index)
+    }
+
+    /// Evaluations told so far, and how many of them failed.
+    pub fn evaluations(&self) -> (usize, usize) {
+        (self.evaluations, self.failed)
+    }
+
+    /// Total budget of all stages.
+    pub fn budget(&self) -> usize {
+        self.stages.iter().map(|s| s.budget).sum()
+    }
+
+    /// Best evaluation so far (full unit coordinates).
+    pub fn best(&self) -> Option<&Best> {
+        self.best.as_ref()
+    }
+
+    /// Physical values by name of a full unit point.
+    pub fn parameters(&self, unit: &[f64]) -> BTreeMap<String, f64> {
+        self.space.names().map(str::to_string).zip(self.space.to_physical(unit)).collect()
+    }
+
+    /// The error that stopped the pipeline, if one did (a stage that could not be built).
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+
+    /// Number of jobs handed out and not yet told.
+    pub fn outstanding(&self) -> usize {
+        self.jobs.len()
+    }
+
+    /// True once every stage has finished (or the pipeline stopped on an error).
+    pub fn is_finished(&self) -> bool {
+        self.error.is_some() || (self.running.is_none() && self.next_stage >= self.stages.len())
+    }
+
+    fn start_stage(&mut self) -> Result<(), String> {
+        let k = self.next_stage;
+        let spec = &self.stages[k];
+        let params: Vec<_> = self.active.iter().map(|&i| self.space.params()[i].clone()).collect();
+        let sub = Space::new(params).map_err(|e| e.to_string())?;
+        let start: Vec<f64> = self.active.iter().map(|&i| self.anchor[i]).collect();
+        let algorithm = build_stage(spec, &sub, Some(&start), stage_seed(self.seed, k))?;
+        self.running = Some(Running {
+            index: k,
+            active: self.active.clone(),
+            algorithm,
+            outstanding: BTreeMap::new(),
+            evaluations: 0,
+            failed: 0,
+            best: None,
+        });
+        self.next_stage += 1;
+        Ok(())
+    }
+
+    fn finish_stage(&mut self, stop: StopReason) {
+        let Some(r) = self.running.take() else { return };
+        let spec = &self.stages[r.index];
+        let details = match &r.algorithm {
+            StageAlgorithm::Inference(a) => Some(a.summary()),
+            StageAlgorithm::Global(_) => None,
+        };
+        let posterior_draws = match &r.algorithm {
+            StageAlgorithm::Inference(InferenceAlgorithm::Mcmc(m)) => {
+                Some(m.samples(POSTERIOR_DRAWS, stage_seed(self.seed, r.index)).physical)
+            }
+            _ => None,
+        };
+        // a sensitivity screen narrows the free set of the stages after it
+        let suggested = match &details {
+            Some(InferenceSummary::Sensitivity(s)) => Some(s.suggested_free.clone()),
+            Some(InferenceSummary::Morris(m)) => Some(m.suggested_free.clone()),
+            _ => None,
+        };
+        if let Some(sel) = suggested
+            && !sel.is_empty()
+        {
+            let mut next: Vec<usize> = sel.iter().filter_map(|&j| r.active.get(j).copied()).collect();
+            next.sort_unstable();
+            self.active = next;
+        }
+        let names = |idx: &[usize]| idx.iter().map(|&i| self.space.params()[i].name.clone()).collect::<Vec<_>>();
+        let (best_cost, best_parameters) = match &r.best {
+            Some((c, _, u)) => (Some(*c), self.parameters(u)),
+            None => (None, BTreeMap::new()),
+        };
+        // the next stage starts from the best point so far
+        if let Some(b) = &self.best {
+            self.anchor = b.unit.clone();
+        }
+        self.reports.push(StageReport {
+            index: r.index,
+            algorithm: spec.algorithm,
+            budget: spec.budget,
+            evaluations: r.evaluations,
+            failed_evaluations: r.failed,
+            free: names(&r.active),
+            best_cost,
+            best_parameters,
+            stop: stop.to_string(),
+            details,
+            posterior_draws,
+        });
+    }
+
+    /// Up to `n` jobs. Fewer (or none) while a generation-synchronous stage waits for results;
+    /// none once the pipeline is finished.
+    pub fn ask(&mut self, n: usize) -> Vec<Job> {
+        loop {
+            if self.is_finished() || n == 0 {
+                return Vec::new();
+            }
+            if self.running.is_none() {
+                if let Err(e) = self.start_stage() {
+                    self.error = Some(format!("stages[{}]: {e}", self.next_stage));
+                    return Vec::new();
+                }
+            }
+            let r = self.running.as_mut().expect("a stage is running");
+            let asked = r.algorithm.inner_mut().ask(n);
+            if !asked.is_empty() {
+                let mut jobs = Vec::with_capacity(asked.len());
+                for c in asked {
+                    let id = self.next_id;
+                    self.next_id += 1;
+                    let mut unit = self.anchor.clone();
+                    for (&i, &u) in r.active.iter().zip(&c.unit) {
+                        unit[i] = u;
+                    }
+                    r.outstanding.insert(c.id, id);
+                    self.jobs.insert(id, Pending { local: c.id, unit: unit.clone() });
+                    let parameters =
+                        self.space.names().map(str::to_string).zip(self.space.to_physical(&unit)).collect();
+                    jobs.push(Job { id, stage: r.index, unit, parameters });
+                }
+                return jobs;
+            }
+            match r.algorithm.inner().finished() {
+                Some(stop) if r.outstanding.is_empty() => self.finish_stage(stop),
+                _ => return Vec::new(),
+            }
+        }
+    }
+
+    /// Takes results of handed-out jobs, in any order. Rejects unknown or repeated ids and
+    /// invalid costs without changing anything.
+    pub fn tell(&mut self, results: &[Evaluation]) -> Result<(), TellError> {
+        let mut seen = std::collections::BTreeSet::new();
+        for e in results {
+            if !self.jobs.contains_key(&e.id) {
+                return Err(TellError::Unknown { id: e.id });
+            }
+            if !seen.insert(e.id) {
+                return Err(TellError::Duplicate { id: e.id });
+            }
+            if let Outcome::Ok { cost } = e.outcome
+                && (!cost.is_finite() || cost < 0.0)
+            {
+                return Err(TellError::BadCost { id: e.id, cost });
+            }
+        }
+        let Some(r) = self.running.as_mut() else {
+            return match results.first() {
+                Some(e) => Err(TellError::Unknown { id: e.id }),
+                None => Ok(()),
+            };
+        };
+        let mut local = Vec::with_capacity(results.len());
+        for e in results {
+            local.push(Evaluation { id: self.jobs[&e.id].local, outcome: e.outcome.clone() });
+        }
+        r.algorithm.inner_mut().tell(&local).map_err(|err| match err {
+            TellError::Unknown { id } => TellError::Unknown { id: r.outstanding.get(&id).copied().unwrap_or(id) },
+            TellError::Duplicate { id } => TellError::Duplicate { id: r.outstanding.get(&id).copied().unwrap_or(id) },
+            other => other,
+        })?;
+        for e in results {
+            let job = self.jobs.remove(&e.id).expect("checked above");
+            r.outstanding.remove(&job.local);
+            r.evaluations += 1;
+            self.evaluations += 1;
+            match e.outcome {
+                Outcome::Ok { cost } => {
+                    // ties go to the lower id, so the best does not depend on the telling order
+                    let better = |c: f64, id: u64, bc: f64, bid: u64| c < bc || (c == bc && id < bid);
+                    if r.best.as_ref().is_none_or(|(bc, bid, _)| better(cost, e.id, *bc, *bid)) {
+                        r.best = Some((cost, e.id, job.unit.clone()));
+                    }
+                    if self.best.as_ref().is_none_or(|b| better(cost, e.id, b.cost, b.id)) {
+                        self.best = Some(Best { id: e.id, unit: job.unit, cost });
+                    }
+                }
+                Outcome::Failed { .. } => {
+                    r.failed += 1;
+                    self.failed += 1;
+                }
+            }
+        }
+        if r.outstanding.is_empty()
+            && let Some(stop) = r.algorithm.inner().finished()
+        {
+            self.finish_stage(stop);
+        }
+        Ok(())
+    }
+}

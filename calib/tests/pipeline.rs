@@ -1,0 +1,155 @@
+//! The stage pipeline end to end on an analytic cost.
+
+use std::collections::BTreeMap;
+
+use cryofit_calib::config::{AlgorithmName, StageSpec};
+use cryofit_calib::inference::InferenceSummary;
+use cryofit_calib::pipeline::{Job, Pipeline};
+use cryofit_calib::{Evaluation, FreeParameter, Outcome, Scale, Space};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+
+fn space() -> Space {
+    let p = |name: &str, lower: f64, upper: f64, scale| FreeParameter { name: name.into(), lower, upper, scale };
+    Space::new(vec![
+        p("a", 0.0, 4.0, Scale::Linear),
+        p("b", 0.1, 10.0, Scale::Log),
+        p("inert1", 0.0, 1.0, Scale::Linear),
+        p("c", -1.0, 1.0, Scale::Linear),
+        p("inert2", 1.0, 2.0, Scale::Linear),
+    ])
+    .unwrap()
+}
+
+/// S = Σ ((x − m)/σ)² on a, ln b, c; the inert parameters do nothing.
+fn cost(params: &BTreeMap<String, f64>) -> Outcome {
+    let a = params["a"];
+    let b = params["b"];
+    let c = params["c"];
+    let s = ((a - 1.3) / 0.05).powi(2) + ((b.ln() - 2f64.ln()) / 0.02).powi(2) + ((c + 0.2) / 0.01).powi(2);
+    Outcome::Ok { cost: s }
+}
+
+fn stages() -> Vec<StageSpec> {
+    let mut sens = StageSpec::new(AlgorithmName::Sensitivity, 20);
+    sens.keep = Some(3);
+    let cma = StageSpec::new(AlgorithmName::Cmaes, 900);
+    let var = StageSpec::new(AlgorithmName::Variance, 200);
+    vec![sens, cma, var]
+}
+
+/// Runs to the end asking `batch` at a time; with `shuffle`, tells each batch in a random order
+/// and in random chunks.
+fn run(batch: usize, shuffle: Option<u64>) -> Pipeline {
+    let s = space();
+    let start = s.to_unit(&[2.0, 1.0, 0.5, 0.0, 1.5]);
+    let mut p = Pipeline::new(s, stages(), start, 5).unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(shuffle.unwrap_or(0));
+    let mut guard = 0;
+    while !p.is_finished() {
+        let mut jobs: Vec<Job> = p.ask(batch);
+        assert!(!jobs.is_empty(), "nothing to do but not finished");
+        if shuffle.is_some() {
+            jobs.shuffle(&mut rng);
+        }
+        let mut results: Vec<Evaluation> =
+            jobs.iter().map(|j| Evaluation { id: j.id, outcome: cost(&j.parameters) }).collect();
+        while !results.is_empty() {
+            let k = if shuffle.is_some() { rng.gen_range(1..=results.len()) } else { results.len() };
+            let chunk: Vec<Evaluation> = results.drain(..k).collect();
+            p.tell(&chunk).unwrap();
+        }
+        guard += 1;
+        assert!(guard < 100_000);
+    }
+    p
+}
+
+#[test]
+fn sensitivity_narrows_then_cmaes_and_variance_find_the_optimum() {
+    let p = run(1000, None);
+    assert!(p.error().is_none());
+    let reports = p.reports();
+    assert_eq!(reports.len(), 3);
+    // the screen keeps the three parameters that matter
+    assert_eq!(reports[1].free, vec!["a", "b", "c"]);
+    let best = p.best().unwrap();
+    let x = p.parameters(&best.unit);
+    assert!((x["a"] - 1.3).abs() < 1e-3 && (x["b"] - 2.0).abs() < 1e-3 && (x["c"] + 0.2).abs() < 1e-3, "{x:?}");
+    // inert parameters stay where they started
+    assert_eq!((x["inert1"], x["inert2"]), (0.5, 1.5));
+    // the Gaussian approximation: σ of S/2 = Σ((x−m)/σ)²/2 ... S = Σ((x−m)/σ)² gives sd = σ/√1
+    // (S/2 is the negative log-likelihood of N(m, σ²/ ... ): with S = ((x−m)/σ)², −ln L = S/2,
+    // so the posterior sd is σ exactly.
+    let Some(InferenceSummary::Variance(v)) = &reports[2].details else { panic!("no variance summary") };
+    let g = v.gaussian.as_ref().unwrap();
+    assert!((g.sd_physical[0] - 0.05).abs() < 0.05 * 0.02, "{:?}", g.sd_physical);
+    assert!((g.sd_physical[2] - 0.01).abs() < 0.01 * 0.02, "{:?}", g.sd_physical);
+    // b is log-scaled: sd(b) ≈ b σ_ln = 2 × 0.02
+    assert!((g.sd_physical[1] - 0.04).abs() < 0.04 * 0.03, "{:?}", g.sd_physical);
+    let (n, failed) = p.evaluations();
+    assert_eq!(failed, 0);
+    assert!(n <= p.budget());
+}
+
+#[test]
+fn bit_identical_whatever_the_batch_size_and_telling_order() {
+    let reference = run(1000, None);
+    for (batch, shuffle) in [(1, None), (3, Some(1)), (7, Some(2)), (64, Some(3))] {
+        let p = run(batch, shuffle);
+        let (a, b) = (reference.best().unwrap(), p.best().unwrap());
+        assert_eq!(a.cost.to_bits(), b.cost.to_bits(), "batch {batch}");
+        assert_eq!(a.unit, b.unit);
+        assert_eq!(reference.evaluations(), p.evaluations());
+    }
+}
+
+#[test]
+fn tell_rejects_unknown_and_repeated_ids_without_changing_anything() {
+    let s = space();
+    let start = vec![0.5; 5];
+    let mut p = Pipeline::new(s, stages(), start, 1).unwrap();
+    let jobs = p.ask(4);
+    assert!(!jobs.is_empty());
+    let ok = |id| Evaluation { id, outcome: Outcome::Ok { cost: 1.0 } };
+    assert!(p.tell(&[ok(999)]).is_err());
+    assert!(p.tell(&[ok(jobs[0].id), ok(jobs[0].id)]).is_err());
+    assert!(p.tell(&[Evaluation { id: jobs[0].id, outcome: Outcome::Ok { cost: f64::NAN } }]).is_err());
+    assert_eq!(p.evaluations(), (0, 0));
+    assert_eq!(p.outstanding(), jobs.len());
+    p.tell(&[ok(jobs[0].id)]).unwrap();
+    assert!(p.tell(&[ok(jobs[0].id)]).is_err(), "a job told twice is refused");
+}
+
+#[test]
+fn bad_stage_options_are_refused_up_front() {
+    let s = space();
+    let mut st = stages();
+    st[2].budget = 5; // too small for the Hessian of 5 parameters
+    let e = Pipeline::new(s, st, vec![0.5; 5], 1).unwrap_err();
+    assert!(e.starts_with("stages[2]: ") && e.contains("budget"), "{e}");
+}
+
+#[cfg(feature = "serde")]
+#[test]
+fn persisted_mid_run_and_resumed_bit_identically() {
+    let reference = run(16, None);
+    let s = space();
+    let start = s.to_unit(&[2.0, 1.0, 0.5, 0.0, 1.5]);
+    let mut p = Pipeline::new(s, stages(), start, 5).unwrap();
+    let mut asks = 0;
+    while !p.is_finished() {
+        let jobs = p.ask(16);
+        let results: Vec<Evaluation> =
+            jobs.iter().map(|j| Evaluation { id: j.id, outcome: cost(&j.parameters) }).collect();
+        // persist with half of the batch outstanding, then resume
+        let (first, second) = results.split_at(results.len() / 2);
+        p.tell(first).unwrap();
+        let json = serde_json::to_string(&p).unwrap();
+        p = serde_json::from_str(&json).unwrap();
+        p.tell(second).unwrap();
+        asks += 1;
+    }
+    assert!(asks > 10);
+    assert_eq!(reference.best().unwrap().cost.to_bits(), p.best().unwrap().cost.to_bits());
+}
