@@ -29,22 +29,22 @@ use crate::space::Space;
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize), serde(rename_all = "snake_case"))]
 pub enum StageAlgorithm {
-    Global(GlobalAlgorithm),
-    Inference(InferenceAlgorithm),
+    Global(Box<GlobalAlgorithm>),
+    Inference(Box<InferenceAlgorithm>),
 }
 
 impl StageAlgorithm {
     fn inner(&self) -> &dyn Optimizer {
         match self {
-            Self::Global(a) => a,
-            Self::Inference(a) => a,
+            Self::Global(a) => a.as_ref(),
+            Self::Inference(a) => a.as_ref(),
         }
     }
 
     fn inner_mut(&mut self) -> &mut dyn Optimizer {
         match self {
-            Self::Global(a) => a,
-            Self::Inference(a) => a,
+            Self::Global(a) => a.as_mut(),
+            Self::Inference(a) => a.as_mut(),
         }
     }
 }
@@ -60,10 +60,12 @@ pub fn build_stage(
     let b = spec.budget;
     let name = spec.algorithm;
     let global = |o: GlobalOptions| {
-        GlobalAlgorithm::new(d, start, o, b, seed).map(StageAlgorithm::Global).map_err(|e| format!("{name}: {e}"))
+        GlobalAlgorithm::new(d, start, o, b, seed)
+            .map(|a| StageAlgorithm::Global(Box::new(a)))
+            .map_err(|e| format!("{name}: {e}"))
     };
     let inf = |r: Result<InferenceAlgorithm, inference::InferenceError>| {
-        r.map(StageAlgorithm::Inference).map_err(|e| e.to_string())
+        r.map(|a| StageAlgorithm::Inference(Box::new(a))).map_err(|e| e.to_string())
     };
     match name {
         AlgorithmName::Sensitivity => {
@@ -244,8 +246,9 @@ fn stage_seed(seed: u64, k: usize) -> u64 {
 
 impl Pipeline {
     /// A pipeline over `space` starting at `start` (full unit coordinates, e.g. the registry
-    /// defaults). Every stage is built once up front on the full space, so that bad options or a
-    /// budget too small for an algorithm are reported before anything runs.
+    /// defaults). Every stage is built once up front, on as many parameters as it can have free
+    /// (all of them, or at most a preceding screen's `keep`), so that bad options or a budget too
+    /// small for an algorithm are reported before anything runs.
     pub fn new(space: Space, stages: Vec<StageSpec>, start: Vec<f64>, seed: u64) -> Result<Self, String> {
         if stages.is_empty() {
             return Err("stages: at least one stage is needed".into());
@@ -253,9 +256,15 @@ impl Pipeline {
         if start.len() != space.dim() || start.iter().any(|u| !(0.0..=1.0).contains(u)) {
             return Err(format!("start point must have {} unit coordinates in [0, 1]", space.dim()));
         }
+        // the largest free set each stage can see: a screen keeps at most `keep` (default 20)
+        let mut dim = space.dim();
         for (k, s) in stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
-            build_stage(s, &space, Some(&start), stage_seed(seed, k)).map_err(|e| format!("stages[{k}]: {e}"))?;
+            let sub = Space::new(space.params()[..dim].to_vec()).map_err(|e| e.to_string())?;
+            build_stage(s, &sub, Some(&start[..dim]), stage_seed(seed, k)).map_err(|e| format!("stages[{k}]: {e}"))?;
+            if matches!(s.algorithm, AlgorithmName::Sensitivity | AlgorithmName::Morris) {
+                dim = dim.min(s.keep.unwrap_or(SensitivityOptions::default().max_free));
+            }
         }
         let active = (0..space.dim()).collect();
         Ok(Self {
@@ -357,10 +366,13 @@ impl Pipeline {
             StageAlgorithm::Global(_) => None,
         };
         let posterior_draws = match &r.algorithm {
-            StageAlgorithm::Inference(InferenceAlgorithm::Mcmc(m)) => {
-                Some(m.samples(POSTERIOR_DRAWS, stage_seed(self.seed, r.index)).physical)
-            }
-            _ => None,
+            StageAlgorithm::Inference(a) => match a.as_ref() {
+                InferenceAlgorithm::Mcmc(m) => {
+                    Some(m.samples(POSTERIOR_DRAWS, stage_seed(self.seed, r.index)).physical)
+                }
+                _ => None,
+            },
+            StageAlgorithm::Global(_) => None,
         };
         // a sensitivity screen narrows the free set of the stages after it
         let suggested = match &details {
@@ -406,11 +418,11 @@ impl Pipeline {
             if self.is_finished() || n == 0 {
                 return Vec::new();
             }
-            if self.running.is_none() {
-                if let Err(e) = self.start_stage() {
-                    self.error = Some(format!("stages[{}]: {e}", self.next_stage));
-                    return Vec::new();
-                }
+            if self.running.is_none()
+                && let Err(e) = self.start_stage()
+            {
+                self.error = Some(format!("stages[{}]: {e}", self.next_stage));
+                return Vec::new();
             }
             let r = self.running.as_mut().expect("a stage is running");
             let asked = r.algorithm.inner_mut().ask(n);

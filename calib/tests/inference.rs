@@ -247,6 +247,39 @@ mod variance {
         (space, m, cov)
     }
 
+    /// A cost with numerical noise (a deterministic hash of the point, sd 20 cost units, like a
+    /// simulation's): the noise is measured from the profiles and the intervals are widened
+    /// enough to cover the truth, which the statistical intervals alone do not.
+    #[test]
+    fn noisy_cost_is_measured_and_widens_the_intervals() {
+        let (space, m, cov) = problem();
+        let s = quadratic(&cov.clone().try_inverse().unwrap(), &m, 10.0);
+        let noise = |u: &[f64]| {
+            let h = u.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, x| (h ^ x.to_bits()).wrapping_mul(0x0100_0000_01b3));
+            // two uniform draws → a normal one (Box–Muller)
+            let a = ((h >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+            let b = ((h.rotate_left(29) >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+            20.0 * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let start: Vec<f64> = space.to_unit(&m).iter().map(|u| u + 0.01).collect();
+        let o = VarianceOptions { hessian_step: 0.05, ..VarianceOptions::default() };
+        let mut v = Variance::new(&space, Some(&start), o, 800, 3).unwrap();
+        minimize(&mut v, 4, |u: &[f64]| ok((s(&space.to_physical(u)) + noise(u)).max(0.0)));
+        let r = v.summary();
+        let g = r.gaussian.as_ref().expect("gaussian");
+        let sigma = g.cost_noise.expect("noise estimate");
+        assert!((8.0..50.0).contains(&sigma), "cost noise {sigma}");
+        assert!(g.noise_inflation > 10.0, "{}", g.noise_inflation);
+        for (i, (iv, &truth)) in g.interval95.iter().zip(&m).enumerate() {
+            assert!(
+                iv.lower <= truth && truth <= iv.upper,
+                "parameter {i}: {truth} not in [{}, {}]",
+                iv.lower,
+                iv.upper
+            );
+        }
+    }
+
     #[test]
     fn hessian_covariance_matches_the_analytic_one_in_physical_units() {
         let (space, m, cov) = problem();

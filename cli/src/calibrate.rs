@@ -36,10 +36,11 @@ pub struct CalibrateArgs {
     out: Option<PathBuf>,
 }
 
-/// A calibration read from disk: its spec and its problem.
+/// A calibration read from disk: its spec, its problem and its (not yet started) pipeline.
 pub struct Loaded {
     pub spec: CalibrationSpec,
     pub problem: Problem,
+    pub pipeline: Pipeline,
 }
 
 /// Reads a calibration file and every case and data file it names (relative to its folder).
@@ -47,6 +48,10 @@ pub fn load(file: &Path) -> Result<Loaded> {
     let label = file.display().to_string();
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {label}"))?;
     let spec = CalibrationSpec::from_toml(&text, &label)?;
+    // stages and bounds first: they need no other file
+    let space = spec.space().map_err(|e| anyhow!("{label}: {e}"))?;
+    let start = default_start(&space);
+    let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
     let dir = file.parent().unwrap_or(Path::new("."));
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
@@ -83,7 +88,7 @@ pub fn load(file: &Path) -> Result<Loaded> {
         experiments.push(exp);
     }
     let problem = Problem::new(experiments, spec.weights()).map_err(|e| anyhow!("{label}: {e}"))?;
-    Ok(Loaded { spec, problem })
+    Ok(Loaded { spec, problem, pipeline })
 }
 
 /// Unit coordinates of the registry defaults (clamped into the calibration's bounds): where the
@@ -130,8 +135,8 @@ fn evaluate(pool: &rayon::ThreadPool, problem: &Problem, jobs: &[Job]) -> Vec<Ou
 
 /// Runs the calibration and writes its outputs.
 pub fn run(args: &CalibrateArgs) -> Result<()> {
-    let loaded = load(&args.file)?;
-    let spec = &loaded.spec;
+    let Loaded { spec, problem, mut pipeline } = load(&args.file)?;
+    let spec = &spec;
     let label = args.file.display().to_string();
     let out_dir = match &args.out {
         Some(dir) => dir.clone(),
@@ -152,10 +157,7 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         .num_threads(workers)
         .build()
         .map_err(|e| anyhow!("cannot start {workers} worker threads: {e}"))?;
-    let space = spec.space().map_err(|e| anyhow!("{label}: {e}"))?;
-    let start = default_start(&space);
-    let mut pipeline =
-        Pipeline::new(space.clone(), spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
+    let space = pipeline.space().clone();
 
     let clock = Instant::now();
     let mut bar = Bar::new(std::io::stderr().is_terminal());
@@ -169,7 +171,7 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
             }
             bail!("{label}: the calibration stalled at stage {} with nothing to evaluate", pipeline.stage());
         }
-        let outcomes = evaluate(&pool, &loaded.problem, &jobs);
+        let outcomes = evaluate(&pool, &problem, &jobs);
         let told: Vec<Evaluation> =
             jobs.iter().zip(&outcomes).map(|(j, o)| Evaluation { id: j.id, outcome: o.clone() }).collect();
         pipeline.tell(&told).map_err(|e| anyhow!("internal error: {e}"))?;
@@ -196,15 +198,15 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     // the best fit, once more, for its probes and per-series figures
     let mut fits = Vec::new();
     let mut files: Vec<(String, String)> = Vec::new();
-    for (k, e) in loaded.problem.experiments.iter().enumerate() {
-        let fit = loaded.problem.fit_experiment(k, &best_parameters).map_err(|m| anyhow!("best fit: {m}"))?;
+    for (k, e) in problem.experiments.iter().enumerate() {
+        let fit = problem.fit_experiment(k, &best_parameters).map_err(|m| anyhow!("best fit: {m}"))?;
         let model = solver_of(e)?;
         let out = model.run(&best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?;
         files.push((format!("fit-{}.csv", e.name), probes_csv(&out.probes)));
         fits.push((e, fit, out));
     }
 
-    let data_points = loaded.problem.data_points();
+    let data_points = problem.data_points();
     let result = result_json(spec, &pipeline, &best, &best_parameters, &fits, data_points, wall)?;
     let best_toml = best_toml(spec, &best_parameters);
     let mut outputs: Vec<(String, String)> = vec![

@@ -2,11 +2,14 @@
 
 mod bench;
 mod calibrate;
+mod client;
 mod fluid_source;
 mod params_cmd;
 mod predict;
 mod props;
+mod serve;
 mod simulate;
+mod work;
 
 use std::process::ExitCode;
 
@@ -39,6 +42,18 @@ enum Command {
     /// Measurements too heavy for the test suite (robustness over the parameter space).
     #[command(subcommand)]
     Bench(bench::BenchCommand),
+    /// Run the coordinator: REST API, SQLite storage, optimiser driver and job leases.
+    Serve(serve::ServeArgs),
+    /// Run a worker: claim jobs from a coordinator, simulate, report costs.
+    Work(work::WorkArgs),
+    /// Upload a calibration file's experiments and the calibration to a coordinator.
+    Submit(client::SubmitArgs),
+    /// Show a calibration's status, progress and best parameters.
+    Status(client::StatusArgs),
+    /// Print every result of a calibration (JSON or CSV).
+    Results(client::ResultsArgs),
+    /// Cancel a calibration.
+    Cancel(client::CancelArgs),
 }
 
 fn main() -> ExitCode {
@@ -73,6 +88,12 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Predict(args) => predict::run(&args),
         Command::Params(args) => params_cmd::run(&args),
+        Command::Serve(args) => serve::run(&args),
+        Command::Work(args) => work::run(&args),
+        Command::Submit(args) => client::submit(&args),
+        Command::Status(args) => client::status(&args),
+        Command::Results(args) => client::results(&args),
+        Command::Cancel(args) => client::cancel(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

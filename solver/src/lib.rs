@@ -11,6 +11,7 @@ pub mod closures;
 pub mod cryo;
 pub mod driver;
 pub mod exact;
+mod fastmath;
 pub mod fluids;
 pub mod linalg;
 pub mod materials;

@@ -166,6 +166,19 @@ pub struct GaussianApproximation {
     pub correlation: Vec<Vec<f64>>,
     /// `±1.96 σ` in unit coordinates, clamped to the box and mapped to physical values.
     pub interval95: Vec<Interval>,
+    /// Numerical noise of the cost near the optimum, in cost units: the pooled residual RMS of
+    /// cubic fits to the one-parameter profiles (`None` when the profiles leave no degree of
+    /// freedom).
+    pub cost_noise: Option<f64>,
+    /// Factor applied to the covariance for that noise, `1 + 2 σ_ε` (1 without a noise estimate).
+    ///
+    /// Decision: a simulation cost is not a smooth function of the parameters. Adaptive time
+    /// stepping and the two-phase flow's sensitivity to small perturbations make `S` jitter by
+    /// σ_ε between nearby points, so the minimum of the computed `S` wanders over the region where
+    /// the smooth part rises by about 2σ_ε: `½ δᵀ H δ ≈ 2σ_ε`, i.e. a spread of `2σ_ε · 2 H⁻¹ =
+    /// 2σ_ε Σ`. The reported covariance, standard deviations and intervals are the statistical
+    /// ones times `1 + 2σ_ε` (in variance); `log_det_half_hessian` stays that of the Hessian.
+    pub noise_inflation: f64,
 }
 
 /// One point of a one-parameter profile.
@@ -730,6 +743,12 @@ impl Variance {
                 p.points.sort_by(|a, b| a.offset_unit.total_cmp(&b.offset_unit));
             }
         }
+        let mut gaussian = gaussian;
+        if let (Some(g), Some((_, centre_cost))) = (gaussian.as_mut(), &optimum)
+            && let Some(noise) = profile_noise(&profiles, *centre_cost)
+        {
+            inflate(&self.space, g, noise);
+        }
         let mut divergent: Vec<DivergentPoint> = match &optimum {
             Some((centre, _)) => self
                 .failures
@@ -841,5 +860,51 @@ fn gaussian(
         sd_unit,
         correlation,
         interval95,
+        cost_noise: None,
+        noise_inflation: 1.0,
+    }
+}
+
+/// Numerical noise of the cost from the profiles: each profile's costs (with the optimum's at
+/// offset 0) are fitted by a cubic in the offset, which absorbs any smooth shape (the map from
+/// unit to physical coordinates makes a quadratic cost cubic); the pooled residual RMS over the
+/// degrees of freedom left is σ_ε. `None` without at least one degree of freedom.
+fn profile_noise(profiles: &[Profile], centre_cost: f64) -> Option<f64> {
+    let mut sum = 0.0;
+    let mut dof = 0usize;
+    for p in profiles {
+        let mut pts: Vec<(f64, f64)> = p.points.iter().filter_map(|q| Some((q.offset_unit, q.cost?))).collect();
+        pts.push((0.0, centre_cost));
+        if pts.len() <= 4 {
+            continue;
+        }
+        let scale = pts.iter().map(|(x, _)| x.abs()).fold(0.0f64, f64::max).max(1e-300);
+        let a = DMatrix::from_fn(pts.len(), 4, |r, c| (pts[r].0 / scale).powi(c as i32));
+        let b = nalgebra::DVector::from_iterator(pts.len(), pts.iter().map(|(_, y)| *y));
+        let Ok(coef) = a.clone().svd(true, true).solve(&b, 1e-12) else { continue };
+        let r = &b - &a * coef;
+        sum += r.norm_squared();
+        dof += pts.len() - 4;
+    }
+    (dof > 0).then(|| (sum / dof as f64).sqrt())
+}
+
+/// Applies the noise inflation (see [`GaussianApproximation::noise_inflation`]) to `g`.
+fn inflate(space: &Space, g: &mut GaussianApproximation, noise: f64) {
+    let f = 1.0 + 2.0 * noise.max(0.0);
+    let d = g.centre_unit.len();
+    g.cost_noise = Some(noise);
+    g.noise_inflation = f;
+    for i in 0..d {
+        for j in 0..d {
+            g.covariance_unit[i][j] *= f;
+            g.covariance_physical[i][j] *= f;
+        }
+        g.sd_unit[i] *= f.sqrt();
+        g.sd_physical[i] *= f.sqrt();
+        let c = g.centre_unit[i];
+        let (lo, hi) = (c - 1.96 * g.sd_unit[i], c + 1.96 * g.sd_unit[i]);
+        g.interval95[i] =
+            Interval { lower: space.value(i, lo), upper: space.value(i, hi), clamped: lo < 0.0 || hi > 1.0 };
     }
 }

@@ -1,0 +1,56 @@
+//! `cryofit work --coordinator URL [--slots N] [--exit-when-idle SECS]`: runs a worker.
+
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use cryofit_worker::{Client, WorkerSettings};
+
+/// Arguments of `cryofit work`.
+#[derive(Debug, Args)]
+pub struct WorkArgs {
+    /// Coordinator base URL (token from CRYOFIT_TOKEN).
+    #[arg(long, value_name = "URL", env = "CRYOFIT_COORDINATOR")]
+    coordinator: String,
+    /// Simulations run at once [default: the number of cores].
+    #[arg(long, value_name = "N")]
+    slots: Option<usize>,
+    /// Exit after this many seconds without jobs.
+    #[arg(long, value_name = "SECS")]
+    exit_when_idle: Option<f64>,
+}
+
+/// The token of `CRYOFIT_TOKEN`, if set.
+pub fn token() -> Option<String> {
+    std::env::var("CRYOFIT_TOKEN").ok().filter(|t| !t.trim().is_empty())
+}
+
+/// Runs the worker until SIGTERM (then drains) or until idle.
+pub fn run(args: &WorkArgs) -> Result<()> {
+    crate::serve::init_tracing();
+    let slots = match args.slots {
+        Some(0) => bail!("--slots 0: give at least 1"),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let mut settings = WorkerSettings::new(slots);
+    if let Some(s) = args.exit_when_idle {
+        if !(s.is_finite() && s >= 0.0) {
+            bail!("--exit-when-idle {s}: give seconds ≥ 0");
+        }
+        settings.exit_when_idle = Some(Duration::from_secs_f64(s));
+    }
+    let client = Client::new(&args.coordinator, token()).with_context(|| "--coordinator".to_string())?;
+    let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    let summary = rt.block_on(cryofit_worker::run(
+        client,
+        settings,
+        crate::serve::fluid_loader(),
+        cryofit_worker::shutdown_signal(),
+    ))?;
+    eprintln!(
+        "worker done: {} results counted ({} failed evaluations), {} stale",
+        summary.counted, summary.failed, summary.stale
+    );
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! `cryofit calibrate` and `cryofit predict` end to end: a twin experiment (data simulated at
+//! known parameter values plus noise, then fitted), predictions over its posterior, and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cryofit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cryofit-calibrate-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The NBS subcooled case cut to CI size: 10 cells, 220 s (the front passes every station).
+fn small_case(dir: &Path) -> PathBuf {
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+    let text = std::fs::read_to_string(src)
+        .unwrap()
+        .replace("cells = 30", "cells = 10")
+        .replace("end_s = 1000.0", "end_s = 220.0")
+        .replace("output_interval_s = 1.0", "output_interval_s = 2.0")
+        .replace("profile_interval_s = 10.0", "profile_interval_s = 220.0");
+    let path = dir.join("case.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+const TRUE_QMFBSC: f64 = 3.0;
+const TRUE_GWSC: f64 = 1.5;
+
+/// Writes data simulated at the true values with 1 K of noise on the wall temperatures.
+fn twin_data(dir: &Path, case: &Path) -> PathBuf {
+    let truth = dir.join("truth");
+    ok(&cryofit(&[
+        "simulate",
+        case.to_str().unwrap(),
+        "--set",
+        &format!("qmfbsc={TRUE_QMFBSC}"),
+        "--set",
+        &format!("Gwsc={TRUE_GWSC}"),
+        "--noise",
+        "wall_temperature_k=1.0",
+        "--seed",
+        "5",
+        "--out",
+        truth.to_str().unwrap(),
+    ]));
+    let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
+    let mut lines = probes.lines();
+    let mut data = format!("# twin data: simulated at qmfbsc = {TRUE_QMFBSC}, Gwsc = {TRUE_GWSC}, noise 1 K\n");
+    data.push_str(lines.next().unwrap());
+    data.push('\n');
+    for l in lines.filter(|l| l.contains(",wall_temperature_k,")) {
+        data.push_str(l);
+        data.push('\n');
+    }
+    let path = dir.join("data.csv");
+    std::fs::write(&path, data).unwrap();
+    path
+}
+
+const TWIN: &str = r#"
+name = "twin"
+seed = 2
+[[experiments]]
+case = "case.toml"
+data = "data.csv"
+[[parameters]]
+name = "qmfbsc"
+scale = "log"
+[[parameters]]
+name = "Gwsc"
+scale = "log"
+[weights]
+wall_temperature_k = { weight = 1.0, sigma = 1.0 }
+[[stages]]
+algorithm = "cmaes"
+budget = 100
+[[stages]]
+algorithm = "variance"
+budget = 40
+step = 0.03
+restarts = 1
+"#;
+
+/// Twin experiment: CMA-ES recovers the film-boiling scale within 5 %; the reported 95 %
+/// intervals (widened for the simulation's numerical noise) cover both true values; the outputs
+/// are complete and best.toml reproduces the best fit.
+#[test]
+fn twin_experiment_recovers_the_truth_and_predicts() {
+    let dir = scratch("twin");
+    let case = small_case(&dir);
+    twin_data(&dir, &case);
+    let file = dir.join("twin.toml");
+    std::fs::write(&file, TWIN).unwrap();
+    let out_dir = dir.join("out");
+    let stdout =
+        ok(&cryofit(&["calibrate", file.to_str().unwrap(), "--workers", "2", "--out", out_dir.to_str().unwrap()]));
+    println!("{stdout}");
+    assert!(stdout.contains("best parameters:") && stdout.contains("fit:"), "{stdout}");
+
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
+    let q = result["best_parameters"]["qmfbsc"].as_f64().unwrap();
+    let g = result["best_parameters"]["Gwsc"].as_f64().unwrap();
+    assert!((q / TRUE_QMFBSC - 1.0).abs() < 0.05, "qmfbsc {q}");
+    for (name, truth) in [("qmfbsc", TRUE_QMFBSC), ("Gwsc", TRUE_GWSC)] {
+        let u = &result["uncertainty"]["parameters"][name];
+        let (lo, hi) = (u["lower95"].as_f64().unwrap(), u["upper95"].as_f64().unwrap());
+        assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {g})");
+    }
+    assert_eq!(result["evaluations"].as_u64().unwrap(), 140);
+    let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
+    assert_eq!(evaluations.lines().count(), 141);
+    assert!(evaluations.starts_with("id,stage,algorithm,status,cost,qmfbsc,Gwsc,reason"));
+    assert_eq!(result["stages"].as_array().unwrap().len(), 2);
+    // best.toml is a --params file that reproduces the best fit's probes
+    let again = dir.join("again");
+    ok(&cryofit(&[
+        "simulate",
+        case.to_str().unwrap(),
+        "--params",
+        out_dir.join("best.toml").to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+    ]));
+    let fit = std::fs::read_to_string(out_dir.join("fit-case.csv")).unwrap();
+    assert_eq!(fit, std::fs::read_to_string(again.join("probes.csv")).unwrap());
+
+    // prediction of an untested condition (a lower drive pressure) over the posterior
+    let untested = dir.join("untested.toml");
+    std::fs::write(
+        &untested,
+        std::fs::read_to_string(&case).unwrap().replace("pressure_pa = 425565.0", "pressure_pa = 350000.0"),
+    )
+    .unwrap();
+    let pred = dir.join("pred");
+    let stdout = ok(&cryofit(&[
+        "predict",
+        untested.to_str().unwrap(),
+        "--from",
+        out_dir.to_str().unwrap(),
+        "--samples",
+        "6",
+        "--out",
+        pred.to_str().unwrap(),
+    ]));
+    assert!(stdout.contains("TS4 chilldown"), "{stdout}");
+    let bands = std::fs::read_to_string(pred.join("bands.csv")).unwrap();
+    assert!(bands.starts_with("time_s,station,x_m,quantity,q05,q50,q95\n"));
+    for line in bands.lines().skip(1).filter(|l| l.contains("wall_temperature_k")) {
+        let v: Vec<f64> = line.split(',').skip(4).map(|x| x.parse().unwrap()).collect();
+        assert!(v[0] <= v[1] && v[1] <= v[2], "{line}");
+    }
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(pred.join("prediction.json")).unwrap()).unwrap();
+    assert_eq!(p["samples"], 6);
+    assert_eq!(p["method"], "Gaussian approximation of the variance stage");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Bad calibration files: one line naming the file and the field, non-zero exit, nothing written.
+#[test]
+fn bad_calibration_files_are_refused_with_the_field_named() {
+    let dir = scratch("bad");
+    let case = small_case(&dir);
+    std::fs::write(
+        dir.join("data.csv"),
+        "time_s,station,x_m,quantity,value\n0,TS1,6.1,wall_temperature_k,290\n10,TS9,1,wall_temperature_k,280\n",
+    )
+    .unwrap();
+    let cases = [
+        (TWIN.replace("name = \"Gwsc\"", "name = \"Gwscc\""), "did you mean `Gwsc`"),
+        (TWIN.replace("budget = 100", "budget = 100\nwalkers = 4"), "stages[0].walkers: does not apply"),
+        (TWIN.replace("sigma = 1.0 }", "sigma = -1.0 }"), "weights.wall_temperature_k.sigma"),
+        (TWIN.replace("data = \"data.csv\"", "data = \"missing.csv\""), "experiments[0].data: cannot read"),
+        (TWIN.to_string(), "station `TS9`"),
+        (TWIN.replace("budget = 40", "budget = 3"), "budget"),
+    ];
+    for (k, (text, expected)) in cases.iter().enumerate() {
+        let file = dir.join(format!("bad{k}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let out_dir = dir.join(format!("out{k}"));
+        let out = cryofit(&["calibrate", file.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+        assert!(!out.status.success(), "case {k} succeeded");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(err.trim_end().lines().count(), 1, "case {k}: {err}");
+        assert!(err.contains(expected), "case {k}: expected `{expected}` in {err}");
+        assert!(err.contains(&format!("bad{k}.toml")), "case {k}: file not named: {err}");
+        assert!(!out_dir.exists(), "case {k}: output written");
+    }
+    // data longer than the case
+    let short = std::fs::read_to_string(&case).unwrap().replace("end_s = 220.0", "end_s = 5.0");
+    std::fs::write(&case, short).unwrap();
+    std::fs::write(
+        dir.join("data.csv"),
+        "time_s,station,x_m,quantity,value\n0,TS1,6.1,wall_temperature_k,290\n10,TS1,6.1,wall_temperature_k,280\n",
+    )
+    .unwrap();
+    let file = dir.join("short.toml");
+    std::fs::write(&file, TWIN).unwrap();
+    let out = cryofit(&["calibrate", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("ends at time.end_s = 5 s"), "{err}");
+    // predict without a calibration folder
+    let out = cryofit(&["predict", case.to_str().unwrap(), "--from", dir.join("nowhere").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("result.json"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

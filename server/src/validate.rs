@@ -1,0 +1,170 @@
+//! Checks of experiments and calibrations before anything is stored. Errors name the field.
+
+use std::collections::BTreeMap;
+
+use cryofit_api as api;
+use cryofit_calib::config::{CalibrationSpec, DEFAULT_MAX_EVALUATION_S, ExperimentRef};
+use cryofit_calib::pipeline::Pipeline;
+use cryofit_calib::problem::{Problem, experiment_from_texts};
+use cryofit_solver::params::{self, ParameterSet};
+
+use crate::FluidLoader;
+
+/// A field-level validation error.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Invalid {
+    /// Field path.
+    pub field: Option<String>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl Invalid {
+    fn at(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self { field: Some(field.into()), message: message.into() }
+    }
+
+    /// From a calib message `field.path: what` (or `field (name): what`), taking the field from it.
+    fn from_message(message: String) -> Self {
+        Self { field: field_of(&message), message }
+    }
+}
+
+/// The field path a calib/solver message starts with (`stages[0].budget: …` → `stages[0].budget`).
+pub fn field_of(message: &str) -> Option<String> {
+    let (head, _) = message.split_once(": ")?;
+    let mut parts = head.splitn(2, ' ');
+    let token = parts.next()?;
+    let rest = parts.next().unwrap_or("").trim_start();
+    let ok = !token.is_empty()
+        && token.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '[' | ']' | '-'))
+        && (rest.is_empty() || rest.starts_with('(') || rest.starts_with('='));
+    ok.then(|| token.to_string())
+}
+
+/// Checks an experiment by building it (case, data, stations, duration, fluid). Returns the
+/// canonical fluid name.
+pub fn experiment(req: &api::CreateExperiment, fluids: &FluidLoader) -> Result<String, Invalid> {
+    if req.name.trim().is_empty() {
+        return Err(Invalid::at("name", "must not be empty"));
+    }
+    if req.name.len() > 200 {
+        return Err(Invalid::at("name", format!("{} characters: at most 200", req.name.len())));
+    }
+    let case =
+        cryofit_solver::case::Case::from_toml(&req.case, "case").map_err(|e| Invalid::at("case", e.to_string()))?;
+    cryofit_calib::data::Dataset::from_csv(&req.data, "data").map_err(|e| Invalid::at("data", e.to_string()))?;
+    let fluid = cryofit_solver::fluids::canonical_name(&case.fluid.name)
+        .ok_or_else(|| Invalid::at("case", format!("case: fluid.name `{}` is not a known fluid", case.fluid.name)))?;
+    let loader = |n: &str| fluids(n).map(|(t, _)| t);
+    experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &ParameterSet::new(), None)
+        .map_err(|m| {
+            let field = if m.starts_with("data") { "data" } else { "case" };
+            Invalid::at(field, m)
+        })?;
+    Ok(fluid.to_string())
+}
+
+/// A validated calibration: the pipeline to start and the fluid hashes.
+#[derive(Debug)]
+pub struct Prepared {
+    /// Fresh pipeline.
+    pub pipeline: Pipeline,
+    /// Fluid hash per fluid.
+    pub fluid_hashes: BTreeMap<String, String>,
+}
+
+/// Checks a calibration against its stored experiments (`experiments[k]` = the stored row of
+/// `req.experiments[k]`) and builds its pipeline.
+pub fn calibration(
+    req: &api::CreateCalibration,
+    experiments: &[api::Experiment],
+    fluids: &FluidLoader,
+) -> Result<Prepared, Invalid> {
+    let spec = CalibrationSpec {
+        name: req.name.clone(),
+        description: req.description.clone(),
+        seed: req.seed,
+        experiments: experiments
+            .iter()
+            .map(|e| ExperimentRef {
+                case: format!("experiment {}", e.id),
+                data: format!("experiment {}", e.id),
+                name: Some(e.name.clone()),
+            })
+            .collect(),
+        parameters: req.parameters.clone(),
+        fixed: req.fixed.clone(),
+        weights: req.weights.clone(),
+        stages: req.stages.clone(),
+        max_evaluation_s: req.max_evaluation_s.unwrap_or(DEFAULT_MAX_EVALUATION_S),
+    };
+    spec.validate().map_err(Invalid::from_message)?;
+    let mut fixed = ParameterSet::new();
+    for (name, &v) in &spec.fixed {
+        fixed.set(name, v).map_err(|e| Invalid::at(format!("fixed.{name}"), e.to_string()))?;
+    }
+    let mut built = Vec::new();
+    let mut hashes = BTreeMap::new();
+    for (k, e) in experiments.iter().enumerate() {
+        let field = format!("experiments[{k}]");
+        let mut hash = None;
+        let loader = |n: &str| {
+            fluids(n).map(|(t, h)| {
+                hash = Some((cryofit_solver::fluids::canonical_name(n).unwrap_or(n).to_string(), h));
+                t
+            })
+        };
+        let case_label = format!("experiment {} case", e.id);
+        let data_label = format!("experiment {} data", e.id);
+        let exp = experiment_from_texts(
+            &e.name,
+            &e.case,
+            &case_label,
+            &e.data,
+            &data_label,
+            loader,
+            &fixed,
+            Some(spec.max_evaluation_s),
+        )
+        .map_err(|m| Invalid::at(field.clone(), m))?;
+        if let Some((fluid, h)) = hash {
+            hashes.insert(fluid, h);
+        }
+        built.push(exp);
+    }
+    Problem::new(built, spec.weights()).map_err(|m| {
+        let mut inv = Invalid::from_message(m);
+        inv.field.get_or_insert_with(|| "experiments".into());
+        inv
+    })?;
+    let space = spec.space().map_err(Invalid::from_message)?;
+    let start: Vec<f64> = space
+        .params()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| space.unit(i, params::spec(&p.name).map_or(0.5 * (p.lower + p.upper), |s| s.default)))
+        .collect();
+    let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|m| {
+        let mut inv = Invalid::from_message(m);
+        if inv.field.is_none() {
+            inv.field = Some("stages".into());
+        }
+        inv
+    })?;
+    Ok(Prepared { pipeline, fluid_hashes: hashes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::field_of;
+
+    #[test]
+    fn fields_are_taken_from_messages() {
+        assert_eq!(field_of("stages[0].budget: must be at least 1").as_deref(), Some("stages[0].budget"));
+        assert_eq!(field_of("parameters[1] (Gwsc): bounds must be finite").as_deref(), Some("parameters[1]"));
+        assert_eq!(field_of("fixed.tauw = 3: outside").as_deref(), Some("fixed.tauw"));
+        assert_eq!(field_of("no field here"), None);
+        assert_eq!(field_of("experiment `a`: none of its data"), None);
+    }
+}

@@ -1,0 +1,5 @@
+//! End-to-end tests: the real `cryofit` binary as coordinator and workers on loopback ports.
+
+mod common;
+mod input;
+mod service;
