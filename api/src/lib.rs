@@ -453,6 +453,46 @@ pub struct ResultRequest {
     pub worker: Option<String>,
 }
 
+/// Largest number of results in one `POST /jobs/results`.
+pub const MAX_RESULT_BATCH: usize = 1000;
+
+/// One job's result inside a [`ResultBatch`]: [`ResultRequest`] with the job id.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JobResult {
+    /// The job.
+    pub job_id: i64,
+    /// The lease id of the claim; a result with an old lease id is recorded as stale.
+    pub lease_id: String,
+    /// The outcome.
+    pub outcome: JobOutcome,
+    /// Wall time of the evaluation, s.
+    #[serde(default)]
+    pub duration_s: Option<f64>,
+    /// Per-series breakdown of the cost.
+    #[serde(default)]
+    pub breakdown: Option<Vec<SeriesCost>>,
+    /// The worker that ran it.
+    #[serde(default)]
+    pub worker: Option<String>,
+}
+
+/// `POST /jobs/results`: results of several jobs, recorded (and told to the optimiser) in one
+/// transaction. Either every result is recorded or, on a 4xx answer, none is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ResultBatch {
+    /// 1 to [`MAX_RESULT_BATCH`] results, each job at most once.
+    pub results: Vec<JobResult>,
+}
+
+/// Answer to a [`ResultBatch`]: one [`ResultResponse`] per result, in order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ResultBatchResponse {
+    /// Per result, in the order sent.
+    pub results: Vec<ResultResponse>,
+}
+
 /// Answer to a result.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct ResultResponse {

@@ -4,6 +4,9 @@
 //! uniformly within the registry bounds (the `numerics` group stays at its defaults: those are
 //! choices of the method, not uncertain physics) and runs the case with each, on all cores. No
 //! run may panic; every failure is reported with its cause (time, cell, variable, reason).
+//!
+//! `cryofit bench coordinator --workers N --evaluations M [--json]` measures the coordinator's
+//! throughput with a null model (see [`coordinator`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -21,11 +24,15 @@ use serde::Serialize;
 
 use crate::fluid_source;
 
+mod coordinator;
+
 /// `cryofit bench` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
     /// Run a case with random parameter sets and report how many complete and why the others fail.
     Robustness(RobustnessArgs),
+    /// Coordinator throughput: HTTP claim → null model → HTTP result → tell → persist.
+    Coordinator(coordinator::CoordinatorArgs),
 }
 
 /// Arguments of `cryofit bench robustness`.
@@ -49,6 +56,7 @@ pub struct RobustnessArgs {
 pub fn run(cmd: &BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Robustness(args) => robustness(args),
+        BenchCommand::Coordinator(args) => coordinator::run(args),
     }
 }
 

@@ -1,5 +1,12 @@
 //! `cryofit calibrate CALIBRATION.toml [--workers N] [--out DIR]`: fits registry parameters to
-//! measured time series, running the simulations on a local thread pool.
+//! measured time series.
+//!
+//! The calibration runs through an embedded coordinator — the service's code path, with its SQLite
+//! database at `<out>/calibration.sqlite` — and in-process workers (`--workers` simulation slots).
+//! Re-running into a folder that holds an unfinished run of the same calibration (the same spec,
+//! cases and data) resumes it where it stopped: nothing counted is evaluated again, and a
+//! generation-synchronous calibration ends bit-identical to an uninterrupted one. A finished run is
+//! reported again; a folder holding another calibration is refused.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -10,14 +17,15 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use cryofit_calib::config::{AlgorithmName, CalibrationSpec};
+use cryofit_api as api;
+use cryofit_calib::Space;
+use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
 use cryofit_calib::data::Dataset;
 use cryofit_calib::inference::InferenceSummary;
-use cryofit_calib::pipeline::{Job, Pipeline};
+use cryofit_calib::pipeline::{Pipeline, StageReport};
 use cryofit_calib::problem::{Experiment, Problem, experiment_from_texts};
-use cryofit_calib::{Evaluation, Outcome, Space};
 use cryofit_solver::params::{self, ParameterSet};
-use rayon::prelude::*;
+use cryofit_worker::{Client, WorkerSettings};
 use serde_json::json;
 
 use crate::fluid_source;
@@ -28,10 +36,11 @@ use crate::simulate::{csv_field, fmt_num, probes_csv, write_outputs};
 pub struct CalibrateArgs {
     /// The calibration file (TOML).
     file: PathBuf,
-    /// Simulations run at once [default: the number of cores].
+    /// Simulations run at once (in-process worker slots) [default: the number of cores].
     #[arg(long, value_name = "N")]
     workers: Option<usize>,
-    /// Output directory [default: out/<calibration file stem>].
+    /// Output directory, also holding the run's database (calibration.sqlite): re-running into it
+    /// resumes an unfinished run [default: out/<calibration file stem>].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
 }
@@ -102,126 +111,368 @@ pub fn default_start(space: &Space) -> Vec<f64> {
         .collect()
 }
 
-/// One row of `evaluations.csv`.
-struct Row {
-    job: Job,
-    outcome: Outcome,
-}
+/// File name of the embedded coordinator's database in the output folder.
+const DATABASE: &str = "calibration.sqlite";
 
-/// Evaluates jobs on the pool: every (job, experiment) pair is one task, so the cores stay busy
-/// even with fewer jobs than cores.
-fn evaluate(pool: &rayon::ThreadPool, problem: &Problem, jobs: &[Job]) -> Vec<Outcome> {
-    let n_exp = problem.experiments.len();
-    let parts: Vec<Outcome> = pool.install(|| {
-        (0..jobs.len() * n_exp)
-            .into_par_iter()
-            .map(|k| problem.evaluate_experiment(k % n_exp, &jobs[k / n_exp].parameters))
-            .collect()
-    });
-    parts
-        .chunks(n_exp)
-        .map(|chunk| {
-            let mut total = 0.0;
-            for o in chunk {
-                match o {
-                    Outcome::Ok { cost } => total += cost,
-                    failed => return failed.clone(),
-                }
-            }
-            Outcome::Ok { cost: total }
-        })
-        .collect()
-}
+/// Most worker slots (the coordinator's limit of a worker's slots).
+const MAX_WORKERS: usize = 4096;
 
-/// Runs the calibration and writes its outputs.
-pub fn run(args: &CalibrateArgs) -> Result<()> {
-    let Loaded { spec, problem, mut pipeline } = load(&args.file)?;
-    let spec = &spec;
-    let label = args.file.display().to_string();
-    let out_dir = match &args.out {
+/// Where the outputs go: `--out`, or `out/<calibration file stem>`.
+fn out_dir(args: &CalibrateArgs) -> PathBuf {
+    match &args.out {
         Some(dir) => dir.clone(),
         None => {
             let stem = args.file.file_stem().map_or_else(|| "calibration".into(), |s| s.to_string_lossy().into_owned());
             Path::new("out").join(stem)
         }
-    };
+    }
+}
+
+/// What the outputs are made from: the calibration as the coordinator reports it at the end, and
+/// its history.
+struct Run {
+    evaluations: usize,
+    failed: usize,
+    budget: usize,
+    stages: Vec<StageSpec>,
+    reports: Vec<StageReport>,
+    best_cost: f64,
+    best_parameters: BTreeMap<String, f64>,
+    /// Told parameter sets in the optimiser's order.
+    rows: Vec<api::ParameterSetItem>,
+    wall: f64,
+}
+
+/// Runs the calibration through an embedded coordinator whose database is `<out>/calibration.sqlite`
+/// with in-process workers, resuming an unfinished run of the same calibration found there, and
+/// writes the outputs.
+pub fn run(args: &CalibrateArgs) -> Result<()> {
+    let Loaded { spec, problem, pipeline } = load(&args.file)?;
+    let spec = &spec;
+    let label = args.file.display().to_string();
+    let out_dir = out_dir(args);
     if out_dir.exists() && !out_dir.is_dir() {
         bail!("--out {}: exists and is not a directory", out_dir.display());
     }
     let workers = match args.workers {
         Some(0) => bail!("--workers 0: give at least 1"),
+        Some(n) if n > MAX_WORKERS => bail!("--workers {n}: give at most {MAX_WORKERS}"),
         Some(n) => n,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_WORKERS),
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(workers)
-        .build()
-        .map_err(|e| anyhow!("cannot start {workers} worker threads: {e}"))?;
+    let (_, experiments) = crate::client::read_calibration(&args.file)?;
+    std::fs::create_dir_all(&out_dir)
+        .with_context(|| format!("--out {}: cannot create the directory", out_dir.display()))?;
+    let _lock = lock_folder(&out_dir)?;
     let space = pipeline.space().clone();
-
-    let clock = Instant::now();
-    let mut bar = Bar::new(std::io::stderr().is_terminal());
-    let mut rows: Vec<Row> = Vec::new();
-    let batch = (workers * 4).max(8);
-    while !pipeline.is_finished() {
-        let jobs = pipeline.ask(batch);
-        if jobs.is_empty() {
-            if pipeline.is_finished() {
-                break;
-            }
-            bail!("{label}: the calibration stalled at stage {} with nothing to evaluate", pipeline.stage());
-        }
-        let outcomes = evaluate(&pool, &problem, &jobs);
-        let told: Vec<Evaluation> =
-            jobs.iter().zip(&outcomes).map(|(j, o)| Evaluation { id: j.id, outcome: o.clone() }).collect();
-        pipeline.tell(&told).map_err(|e| anyhow!("internal error: {e}"))?;
-        rows.extend(jobs.into_iter().zip(outcomes).map(|(job, outcome)| Row { job, outcome }));
-        bar.update(&pipeline, clock.elapsed());
-    }
-    bar.clear();
-    if let Some(e) = pipeline.error() {
-        bail!("{label}: {e}");
-    }
-    let wall = clock.elapsed().as_secs_f64();
-    let Some(best) = pipeline.best().cloned() else {
-        let reasons: BTreeMap<String, usize> = rows.iter().fold(BTreeMap::new(), |mut m, r| {
-            if let Outcome::Failed { reason } = &r.outcome {
-                *m.entry(reason.clone()).or_default() += 1;
-            }
-            m
-        });
-        let first = reasons.keys().next().cloned().unwrap_or_default();
-        bail!("{label}: every one of the {} evaluations failed; first reason: {first}", rows.len());
+    let run = {
+        let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+        rt.block_on(drive(spec, &label, &experiments, &out_dir, workers))?
     };
-    let best_parameters = pipeline.parameters(&best.unit);
 
     // the best fit, once more, for its probes and per-series figures
     let mut fits = Vec::new();
     let mut files: Vec<(String, String)> = Vec::new();
     for (k, e) in problem.experiments.iter().enumerate() {
-        let fit = problem.fit_experiment(k, &best_parameters).map_err(|m| anyhow!("best fit: {m}"))?;
+        let fit = problem.fit_experiment(k, &run.best_parameters).map_err(|m| anyhow!("best fit: {m}"))?;
         let model = solver_of(e)?;
-        let out = model.run(&best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?;
+        let out = model.run(&run.best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?;
         files.push((format!("fit-{}.csv", e.name), probes_csv(&out.probes)));
         fits.push((e, fit, out));
     }
 
     let data_points = problem.data_points();
-    let result = result_json(spec, &pipeline, &best, &best_parameters, &fits, data_points, wall)?;
-    let best_toml = best_toml(spec, &best_parameters);
+    let result = result_json(spec, &run, &fits, data_points)?;
+    let best_toml = best_toml(spec, &run.best_parameters);
     let mut outputs: Vec<(String, String)> = vec![
         ("result.json".into(), result),
         ("best.toml".into(), best_toml),
-        ("evaluations.csv".into(), evaluations_csv(&space, &pipeline, &rows)),
+        ("evaluations.csv".into(), evaluations_csv(&space, &run)),
     ];
-    if let Some(draws) = posterior_csv(&pipeline) {
+    if let Some(draws) = posterior_csv(&run.reports) {
         outputs.push(("posterior.csv".into(), draws));
     }
     outputs.extend(files);
     let refs: Vec<(&str, String)> = outputs.iter().map(|(n, c)| (n.as_str(), c.clone())).collect();
     write_outputs(&out_dir, &refs)?;
-    print_report(spec, &pipeline, &best, &best_parameters, &fits, wall, &out_dir, &outputs);
+    print_report(spec, &run, &fits, &out_dir, &outputs);
     Ok(())
+}
+
+/// An exclusive lock on the output folder for as long as it is held, so that two runs never
+/// drive the same database. Where folders cannot be locked (not on Unix), there is no lock.
+fn lock_folder(dir: &Path) -> Result<Option<std::fs::File>> {
+    let Ok(handle) = std::fs::File::open(dir) else { return Ok(None) };
+    match handle.try_lock() {
+        Ok(()) => Ok(Some(handle)),
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "--out {}: another cryofit calibrate is running into this folder; wait for it to finish or pick another \
+             --out",
+            dir.display()
+        ),
+        Err(std::fs::TryLockError::Error(_)) => Ok(None),
+    }
+}
+
+/// The calibration request for stored experiments `ids`.
+fn request(spec: &CalibrationSpec, ids: Vec<i64>) -> api::CreateCalibration {
+    api::CreateCalibration {
+        name: spec.name.clone(),
+        description: spec.description.clone(),
+        seed: spec.seed,
+        experiments: ids,
+        parameters: spec.parameters.clone(),
+        fixed: spec.fixed.clone(),
+        weights: spec.weights.clone(),
+        stages: spec.stages.clone(),
+        max_evaluation_s: Some(spec.max_evaluation_s),
+    }
+}
+
+/// Starts the embedded coordinator on `<out>/calibration.sqlite`, submits (or finds) the
+/// calibration, runs the workers until it ends and fetches what the outputs need.
+async fn drive(
+    spec: &CalibrationSpec,
+    label: &str,
+    experiments: &[api::CreateExperiment],
+    out_dir: &Path,
+    workers: usize,
+) -> Result<Run> {
+    let database = out_dir.join(DATABASE);
+    let fluids = crate::serve::fluid_loader();
+    let mut settings = cryofit_server::Settings::new(database.display().to_string());
+    settings.fluids = fluids.clone();
+    let server = cryofit_server::start_embedded(&database, settings)
+        .await
+        .map_err(|e| anyhow!("{}: cannot open the calibration database: {e}", database.display()))?;
+    let outcome = async {
+        let client = Client::new(&server.url(), None)?.with_retry_for(Duration::from_secs(10));
+        calibrate(&client, spec, label, experiments, out_dir, workers, fluids).await
+    }
+    .await;
+    let stopped = server.stop().await;
+    let run = outcome?;
+    stopped.map_err(|e| anyhow!("{}: {e}", database.display()))?;
+    Ok(run)
+}
+
+/// The calibration of this file in the database: submitted now, or found unfinished (resumed) or
+/// finished (reported again).
+async fn calibrate(
+    client: &Client,
+    spec: &CalibrationSpec,
+    label: &str,
+    experiments: &[api::CreateExperiment],
+    out_dir: &Path,
+    workers: usize,
+    fluids: cryofit_server::FluidLoader,
+) -> Result<Run> {
+    let database = out_dir.join(DATABASE);
+    let db_label = database.display().to_string();
+    let stored = client.calibrations().await.map_err(|e| anyhow!("{db_label}: {e}"))?;
+    let hashes = cryofit_worker::fluid_hashes(&fluids);
+    let started = Instant::now();
+    let (id, prior) = match stored.as_slice() {
+        [] => (submit(client, spec, label, experiments).await?, 0.0),
+        [c] => {
+            let other = || {
+                anyhow!(
+                    "--out {}: the folder holds another calibration (\"{}\" in {DATABASE}), not the one of {label}; \
+                     pick another --out or delete the folder",
+                    out_dir.display(),
+                    c.name
+                )
+            };
+            let ids = c.experiments.clone();
+            if c.spec != serde_json::to_value(request(spec, ids.clone()))? || ids.len() != experiments.len() {
+                return Err(other());
+            }
+            for (&eid, mine) in ids.iter().zip(experiments) {
+                let e = client.experiment(eid).await.map_err(|e| anyhow!("{db_label}: experiment {eid}: {e}"))?;
+                if e.name != mine.name || e.case != mine.case || e.data != mine.data {
+                    return Err(other());
+                }
+            }
+            let prior = (c.updated - c.created).max(0) as f64 / 1e3;
+            if !c.status.is_final() {
+                if let Some(why) = build_difference(c, &hashes) {
+                    bail!(
+                        "--out {}: the unfinished calibration there {why}, so it cannot be resumed by this cryofit; pick \
+                         another --out or delete the folder",
+                        out_dir.display()
+                    );
+                }
+                eprintln!(
+                    "resuming the unfinished calibration in {}: {} of {} evaluations done",
+                    out_dir.display(),
+                    c.evaluations,
+                    c.budget
+                );
+            }
+            (c.id, prior)
+        }
+        many => bail!(
+            "--out {}: {db_label} holds {} calibrations, not one run of cryofit calibrate; pick another --out",
+            out_dir.display(),
+            many.len()
+        ),
+    };
+    let c = client.calibration(id).await.map_err(|e| anyhow!("{db_label}: calibration {id}: {e}"))?;
+    if c.status.is_final() {
+        // ended in an earlier run: report it again
+        return finished(client, label, out_dir, c, prior).await.map_err(|e| {
+            anyhow!("{e:#} (as stored in {db_label}; delete the folder or pick another --out to run it again)")
+        });
+    }
+    let c = work(client, id, c, workers, fluids).await?;
+    finished(client, label, out_dir, c, prior + started.elapsed().as_secs_f64()).await
+}
+
+/// Why a stored calibration cannot run on this build (solver version, fluid tables), if it cannot.
+fn build_difference(c: &api::Calibration, hashes: &BTreeMap<String, String>) -> Option<String> {
+    if c.solver_version != api::SOLVER_VERSION {
+        return Some(format!("runs solver version {}, this is {}", c.solver_version, api::SOLVER_VERSION));
+    }
+    for (fluid, hash) in &c.fluid_hashes {
+        if hashes.get(fluid) != Some(hash) {
+            return Some(format!("was started with another `{fluid}` fluid table (CRYOFIT_DATA_DIR)"));
+        }
+    }
+    None
+}
+
+/// Uploads the experiments (reusing identical ones already stored, as after an interrupted
+/// upload) and the calibration; returns its id.
+async fn submit(
+    client: &Client,
+    spec: &CalibrationSpec,
+    label: &str,
+    experiments: &[api::CreateExperiment],
+) -> Result<i64> {
+    let stored = client.experiments().await.map_err(|e| anyhow!("{label}: {e}"))?;
+    let mut ids = Vec::new();
+    for (k, e) in experiments.iter().enumerate() {
+        let mut found = None;
+        for s in &stored {
+            if s.name == e.name && !ids.contains(&s.id) {
+                let full = client.experiment(s.id).await.map_err(|err| anyhow!("{label}: {err}"))?;
+                if full.case == e.case && full.data == e.data {
+                    found = Some(s.id);
+                    break;
+                }
+            }
+        }
+        let id = match found {
+            Some(id) => id,
+            None => {
+                client
+                    .create_experiment(e)
+                    .await
+                    .map_err(|err| anyhow!("{label}: experiments[{k}] ({}): {err}", e.name))?
+                    .id
+            }
+        };
+        ids.push(id);
+    }
+    let created = client.create_calibration(&request(spec, ids)).await.map_err(|err| anyhow!("{label}: {err}"))?;
+    Ok(created.id)
+}
+
+/// Runs in-process workers (`workers` slots) until the calibration ends; returns its final state.
+async fn work(
+    client: &Client,
+    id: i64,
+    start: api::Calibration,
+    workers: usize,
+    fluids: cryofit_server::FluidLoader,
+) -> Result<api::Calibration> {
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let mut worker = tokio::spawn(cryofit_worker::run(client.clone(), WorkerSettings::new(workers), fluids, async {
+        let _ = stopped.await;
+    }));
+    let clock = Instant::now();
+    let mut bar = Bar::new(std::io::stderr().is_terminal());
+    let done_before = start.evaluations.max(0) as usize;
+    let mut c = start;
+    let outcome = loop {
+        bar.update(&c, done_before, clock.elapsed());
+        if c.status.is_final() {
+            break Ok(c);
+        }
+        tokio::select! {
+            joined = &mut worker => {
+                // the worker stops only when told to, or on an error
+                bar.clear();
+                return match joined {
+                    Ok(Ok(_)) => Err(anyhow!("calibration {id}: the workers stopped before it finished")),
+                    Ok(Err(e)) => Err(anyhow!("calibration {id}: worker: {e}")),
+                    Err(e) => Err(anyhow!("calibration {id}: worker task: {e}")),
+                };
+            }
+            _ = tokio::time::sleep(Duration::from_millis(100)) => {}
+        }
+        match client.calibration(id).await {
+            Ok(next) => c = next,
+            Err(e) => break Err(anyhow!("calibration {id}: {e}")),
+        }
+    };
+    bar.clear();
+    let _ = stop.send(());
+    match worker.await {
+        Ok(Ok(_)) => {}
+        Ok(Err(e)) => return Err(anyhow!("calibration {id}: worker: {e}")),
+        Err(e) => return Err(anyhow!("calibration {id}: worker task: {e}")),
+    }
+    outcome
+}
+
+/// Turns a calibration that has ended into what the outputs need, or into the error that ended it.
+async fn finished(client: &Client, label: &str, out_dir: &Path, c: api::Calibration, wall: f64) -> Result<Run> {
+    let id = c.id;
+    match c.status {
+        api::CalibrationStatus::Completed => {}
+        api::CalibrationStatus::Cancelled => bail!(
+            "{label}: the calibration in {} was cancelled; pick another --out or delete the folder to start again",
+            out_dir.display()
+        ),
+        _ => {
+            let error = c.error.clone().unwrap_or_else(|| format!("the calibration ended {}", c.status.as_str()));
+            if error.starts_with("every one of") {
+                let sets = client.parameter_sets(id).await.map_err(|e| anyhow!("calibration {id}: {e}"))?;
+                let first = sets.iter().filter_map(|s| s.reason.clone()).min().unwrap_or_default();
+                bail!("{label}: every one of the {} evaluations failed; first reason: {first}", c.evaluations);
+            }
+            bail!("{label}: {error}");
+        }
+    }
+    let reports = c
+        .stages
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            serde_json::from_value::<StageReport>(v.clone())
+                .map_err(|e| anyhow!("calibration {id}: the report of stage {k} cannot be read: {e}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (Some(best_cost), Some(best_parameters)) = (c.best_cost, c.best_parameters) else {
+        bail!("{label}: calibration {id} completed without a best point");
+    };
+    let mut rows = client.parameter_sets(id).await.map_err(|e| anyhow!("calibration {id}: {e}"))?;
+    rows.retain(|r| r.status != "pending");
+    rows.sort_by_key(|r| r.job);
+    let stages: Vec<StageSpec> = serde_json::from_value(c.spec["stages"].clone())
+        .map_err(|e| anyhow!("calibration {id}: the stored stages cannot be read: {e}"))?;
+    Ok(Run {
+        evaluations: c.evaluations.max(0) as usize,
+        failed: c.failed_evaluations.max(0) as usize,
+        budget: c.budget.max(0) as usize,
+        stages,
+        reports,
+        best_cost,
+        best_parameters,
+        rows,
+        wall,
+    })
 }
 
 /// The solver model of an experiment (every experiment of a file-based calibration is one).
@@ -265,16 +516,7 @@ fn chilldown_pairs(
 
 type FitRow<'a> = (&'a Experiment, cryofit_calib::cost::Fit, cryofit_solver::driver::Output);
 
-fn result_json(
-    spec: &CalibrationSpec,
-    p: &Pipeline,
-    best: &cryofit_calib::Best,
-    best_parameters: &BTreeMap<String, f64>,
-    fits: &[FitRow<'_>],
-    data_points: usize,
-    wall: f64,
-) -> Result<String> {
-    let (evaluations, failed) = p.evaluations();
+fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_points: usize) -> Result<String> {
     let mut fit = serde_json::Map::new();
     for (e, f, out) in fits {
         let series: Vec<_> = f
@@ -293,17 +535,17 @@ fn result_json(
     let value = json!({
         "name": spec.name,
         "seed": spec.seed,
-        "best_cost": best.cost,
-        "best_parameters": best_parameters,
+        "best_cost": run.best_cost,
+        "best_parameters": run.best_parameters,
         "fixed_parameters": spec.fixed,
-        "evaluations": evaluations,
-        "failed_evaluations": failed,
-        "budget": p.budget(),
+        "evaluations": run.evaluations,
+        "failed_evaluations": run.failed,
+        "budget": run.budget,
         "data_points": data_points,
-        "wall_time_s": wall,
+        "wall_time_s": run.wall,
         "solver_version": env!("CARGO_PKG_VERSION"),
-        "stages": p.reports(),
-        "uncertainty": uncertainty(p),
+        "stages": run.reports,
+        "uncertainty": uncertainty(&run.reports),
         "fit": fit,
         "calibration": spec,
     });
@@ -313,8 +555,8 @@ fn result_json(
 }
 
 /// Standard deviations and 95 % intervals from the last variance or MCMC stage.
-fn uncertainty(p: &Pipeline) -> serde_json::Value {
-    for r in p.reports().iter().rev() {
+fn uncertainty(reports: &[StageReport]) -> serde_json::Value {
+    for r in reports.iter().rev() {
         match &r.details {
             Some(InferenceSummary::Mcmc(m)) => {
                 let params: BTreeMap<&str, serde_json::Value> = m
@@ -322,7 +564,7 @@ fn uncertainty(p: &Pipeline) -> serde_json::Value {
                     .iter()
                     .map(|q| {
                         (
-                            r.free[q.index].as_str(),
+                            r.free.get(q.index).map_or("?", String::as_str),
                             json!({"value": q.mean, "sd": q.sd, "lower95": q.quantiles.q025, "upper95": q.quantiles.q975,
                                    "median": q.quantiles.q50, "r_hat": q.r_hat}),
                         )
@@ -372,29 +614,30 @@ fn toml_num(v: f64) -> String {
     if s.contains(['.', 'e', 'E']) || s.contains("inf") || s.contains("NaN") { s } else { format!("{s}.0") }
 }
 
-fn evaluations_csv(space: &Space, p: &Pipeline, rows: &[Row]) -> String {
+fn evaluations_csv(space: &Space, run: &Run) -> String {
     let mut s = String::from("id,stage,algorithm,status,cost");
     for name in space.names() {
         let _ = write!(s, ",{}", csv_field(name));
     }
     s.push_str(",reason\n");
-    for r in rows {
-        let algorithm = p.stages().get(r.job.stage).map_or("?", |st| st.algorithm.as_str());
-        let (status, cost, reason) = match &r.outcome {
-            Outcome::Ok { cost } => ("ok", fmt_num(*cost), String::new()),
-            Outcome::Failed { reason } => ("failed", String::new(), reason.clone()),
+    for r in &run.rows {
+        let algorithm =
+            usize::try_from(r.stage).ok().and_then(|k| run.stages.get(k)).map_or("?", |st| st.algorithm.as_str());
+        let (status, cost, reason) = match (r.status.as_str(), r.cost) {
+            ("ok", Some(cost)) => ("ok", fmt_num(cost), String::new()),
+            _ => ("failed", String::new(), r.reason.clone().unwrap_or_default()),
         };
-        let _ = write!(s, "{},{},{algorithm},{status},{cost}", r.job.id, r.job.stage);
+        let _ = write!(s, "{},{},{algorithm},{status},{cost}", r.job, r.stage);
         for name in space.names() {
-            let _ = write!(s, ",{}", fmt_num(r.job.parameters[name]));
+            let _ = write!(s, ",{}", r.parameters.get(name).map_or_else(String::new, |v| fmt_num(*v)));
         }
         let _ = writeln!(s, ",{}", csv_field(&reason));
     }
     s
 }
 
-fn posterior_csv(p: &Pipeline) -> Option<String> {
-    let r = p.reports().iter().rev().find(|r| r.posterior_draws.is_some())?;
+fn posterior_csv(reports: &[StageReport]) -> Option<String> {
+    let r = reports.iter().rev().find(|r| r.posterior_draws.is_some())?;
     let draws = r.posterior_draws.as_ref()?;
     let mut s = r.free.iter().map(|n| csv_field(n)).collect::<Vec<_>>().join(",");
     s.push('\n');
@@ -405,24 +648,14 @@ fn posterior_csv(p: &Pipeline) -> Option<String> {
     Some(s)
 }
 
-#[allow(clippy::too_many_arguments)]
-fn print_report(
-    spec: &CalibrationSpec,
-    p: &Pipeline,
-    best: &cryofit_calib::Best,
-    best_parameters: &BTreeMap<String, f64>,
-    fits: &[FitRow<'_>],
-    wall: f64,
-    out_dir: &Path,
-    outputs: &[(String, String)],
-) {
-    let (n, failed) = p.evaluations();
+fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir: &Path, outputs: &[(String, String)]) {
+    let (n, failed, wall) = (run.evaluations, run.failed, run.wall);
     println!(
         "calibration \"{}\": {n} evaluations ({failed} failed) in {wall:.1} s; best cost {}",
         spec.name,
-        fmt_sig(best.cost)
+        fmt_sig(run.best_cost)
     );
-    for r in p.reports() {
+    for r in &run.reports {
         let best = r.best_cost.map_or_else(|| "no successful evaluation".into(), |c| format!("best {}", fmt_sig(c)));
         println!(
             "  stage {} {}: {} evaluations ({} failed), {best}, {} free; {}",
@@ -443,14 +676,17 @@ fn print_report(
                 .entries
                 .iter()
                 .take(8)
-                .map(|e| format!("{} {:.2}", r.free[e.index], e.normalised.unwrap_or(0.0)))
+                .map(|e| {
+                    let name = r.free.get(e.index).map_or("?", String::as_str);
+                    format!("{name} {:.2}", e.normalised.unwrap_or(0.0))
+                })
                 .collect();
             println!("    ranking (normalised): {}", top.join(", "));
         }
     }
-    let unc = uncertainty(p);
+    let unc = uncertainty(&run.reports);
     println!("  best parameters:");
-    for (name, v) in best_parameters {
+    for (name, v) in &run.best_parameters {
         let pm = unc["parameters"][name.as_str()].as_object().map(|u| {
             format!(
                 "  ± {} (95 %: {} – {})",
@@ -506,7 +742,9 @@ impl Bar {
         Self { enabled, last: None, drawn: 0 }
     }
 
-    fn update(&mut self, p: &Pipeline, elapsed: Duration) {
+    /// Draws the progress of `c`; `done_before` evaluations were done before this run (`elapsed`
+    /// ago) started, and do not count for the ETA.
+    fn update(&mut self, c: &api::Calibration, done_before: usize, elapsed: Duration) {
         if !self.enabled {
             return;
         }
@@ -515,21 +753,26 @@ impl Bar {
             return;
         }
         self.last = Some(now);
-        let (n, failed) = p.evaluations();
-        let budget = p.budget().max(1);
-        let stage = p.stage().min(p.stages().len().saturating_sub(1));
-        let algorithm = p.stages().get(stage).map_or("", |s| s.algorithm.as_str());
-        let eta = if n > 0 {
-            let per = elapsed.as_secs_f64() / n as f64;
+        let (n, failed) = (c.evaluations.max(0) as usize, c.failed_evaluations.max(0) as usize);
+        let budget = (c.budget.max(0) as usize).max(1);
+        let stages: Vec<&str> = c.spec["stages"]
+            .as_array()
+            .map(|s| s.iter().map(|st| st["algorithm"].as_str().unwrap_or("")).collect())
+            .unwrap_or_default();
+        let stage = (c.stage.max(0) as usize).min(stages.len().saturating_sub(1));
+        let algorithm = stages.get(stage).copied().unwrap_or("");
+        let here = n.saturating_sub(done_before);
+        let eta = if here > 0 {
+            let per = elapsed.as_secs_f64() / here as f64;
             format!("{:.0} s", per * budget.saturating_sub(n) as f64)
         } else {
             "…".into()
         };
-        let best = p.best().map_or_else(|| "—".into(), |b| fmt_sig(b.cost));
+        let best = c.best_cost.map_or_else(|| "—".into(), fmt_sig);
         let line = format!(
             "stage {}/{} {algorithm}  evaluations {n}/{budget} ({failed} failed)  best cost {best}  ETA ≤ {eta}",
             stage + 1,
-            p.stages().len()
+            stages.len()
         );
         let pad = self.drawn.saturating_sub(line.chars().count());
         self.drawn = line.chars().count();

@@ -30,6 +30,7 @@ pub fn run(args: &WorkArgs) -> Result<()> {
     crate::serve::init_tracing();
     let slots = match args.slots {
         Some(0) => bail!("--slots 0: give at least 1"),
+        Some(n) if n > 4096 => bail!("--slots {n}: give at most 4096 (the coordinator's limit)"),
         Some(n) => n,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };

@@ -82,3 +82,40 @@ fn robustness_on_the_nbs_case_never_panics() {
     }
     println!("robustness: {} of 100 complete; causes {}", v["completed"], v["failure_causes"]);
 }
+
+/// `cryofit bench coordinator` end to end on a CI-sized run: the JSON summary is the last line
+/// and its figures are consistent (the speed is not checked); bad arguments get one line.
+#[test]
+fn coordinator_benchmark_reports_json() {
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["bench", "coordinator", "--workers", "2", "--evaluations", "200", "--json"])
+        .env_remove("CRYOFIT_DATA_DIR")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("evaluations/s"), "no table: {stdout}");
+    let last = stdout.trim_end().lines().last().unwrap();
+    let v: serde_json::Value = serde_json::from_str(last).unwrap();
+    assert_eq!(v["evaluations"], 200);
+    assert_eq!(v["workers"], 2);
+    let wall = v["wall_s"].as_f64().unwrap();
+    let rate = v["evaluations_per_s"].as_f64().unwrap();
+    assert!(wall > 0.0 && rate > 0.0, "{v}");
+    assert!((rate * wall - 200.0).abs() < 1e-6 * 200.0, "{v}");
+    for key in ["claim_latency_ms_p50", "claim_latency_ms_p99", "result_latency_ms_p50", "result_latency_ms_p99"] {
+        let x = v[key].as_f64().unwrap_or(-1.0);
+        assert!(x.is_finite() && x >= 0.0, "{key}: {v}");
+    }
+    assert!(v["claim_latency_ms_p50"].as_f64() <= v["claim_latency_ms_p99"].as_f64(), "{v}");
+    assert!(v["claims"].as_u64().unwrap() >= 1 && v["result_requests"].as_u64().unwrap() >= 1, "{v}");
+    // bad arguments: one line naming the argument
+    let out = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["bench", "coordinator", "--workers", "0", "--evaluations", "200"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("--workers 0"), "{err}");
+}

@@ -217,3 +217,118 @@ fn bad_calibration_files_are_refused_with_the_field_named() {
     assert!(!out.status.success() && err.contains("result.json"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The tiny end-to-end case of the `tests` crate (NBS subcooled, 5 cells, 8 s) with a CMA-ES
+/// budget of 60 (10 generations of 6).
+fn tiny_calibration(dir: &Path) -> PathBuf {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures");
+    for name in ["tiny.toml", "tiny-data.csv"] {
+        std::fs::copy(fixtures.join(name), dir.join(name)).unwrap();
+    }
+    let text =
+        std::fs::read_to_string(fixtures.join("tiny-calibration.toml")).unwrap().replace("budget = 18", "budget = 60");
+    assert!(text.contains("budget = 60"), "{text}");
+    let file = dir.join("tiny-calibration.toml");
+    std::fs::write(&file, text).unwrap();
+    file
+}
+
+/// Evaluations stored in a calibration database, read as a second process would (`None` until
+/// the calibration exists).
+fn stored_evaluations(db: &Path) -> Option<i64> {
+    use sqlx::Connection;
+    if !db.exists() {
+        return None;
+    }
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().unwrap();
+    rt.block_on(async {
+        let options = sqlx::sqlite::SqliteConnectOptions::new().filename(db).read_only(true);
+        let mut c = sqlx::SqliteConnection::connect_with(&options).await.ok()?;
+        let n: Option<i64> =
+            sqlx::query_scalar("SELECT evaluations FROM calibrations").fetch_optional(&mut c).await.ok()?;
+        let _ = c.close().await;
+        n
+    })
+}
+
+/// `cryofit calibrate` killed with SIGKILL mid-run and run again into the same folder resumes the
+/// same calibration: it completes with exactly the budget evaluated, the same evaluations and a best
+/// cost bit-identical to an uninterrupted run with the same seed. A finished folder is reported
+/// again; a different calibration into it is refused.
+#[test]
+fn killed_calibration_resumes_bit_identically() {
+    let dir = scratch("resume");
+    let file = tiny_calibration(&dir);
+    let file_arg = file.to_str().unwrap();
+    let reference = dir.join("reference");
+    ok(&cryofit(&["calibrate", file_arg, "--workers", "2", "--out", reference.to_str().unwrap()]));
+
+    let out_dir = dir.join("out");
+    let out_arg = out_dir.to_str().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["calibrate", file_arg, "--workers", "2", "--out", out_arg])
+        .env_remove("CRYOFIT_DATA_DIR")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let database = out_dir.join("calibration.sqlite");
+    loop {
+        if stored_evaluations(&database).is_some_and(|n| n >= 12) {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "the calibration ended before it could be killed");
+        assert!(std::time::Instant::now() < deadline, "no progress in the calibration database");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    assert!(!out_dir.join("result.json").exists(), "the killed run wrote its outputs");
+
+    let again = cryofit(&["calibrate", file_arg, "--workers", "2", "--out", out_arg]);
+    let stdout = ok(&again);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    let done: usize = stderr
+        .split("resuming the unfinished calibration in ")
+        .nth(1)
+        .and_then(|s| s.split(": ").nth(1))
+        .and_then(|s| s.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no resume message: {stderr}"));
+    assert!((12..60).contains(&done), "resumed at {done} evaluations: {stderr}");
+    assert!(stdout.contains("60 evaluations (0 failed)"), "{stdout}");
+
+    let read = |d: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("result.json")).unwrap()).unwrap()
+    };
+    let (resumed, uninterrupted) = (read(&out_dir), read(&reference));
+    assert_eq!(resumed["evaluations"], 60);
+    assert_eq!(resumed["budget"], 60);
+    // bit-identical: serde_json prints the shortest string that reads back to the same float
+    assert_eq!(resumed["best_cost"].to_string(), uninterrupted["best_cost"].to_string());
+    assert_eq!(resumed["best_parameters"].to_string(), uninterrupted["best_parameters"].to_string());
+    for name in ["evaluations.csv", "best.toml", "fit-tiny.csv"] {
+        let a = std::fs::read_to_string(out_dir.join(name)).unwrap();
+        assert_eq!(a, std::fs::read_to_string(reference.join(name)).unwrap(), "{name} differs");
+    }
+    assert_eq!(std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap().lines().count(), 61);
+
+    // a finished folder: the outputs are written again, nothing runs
+    std::fs::remove_file(out_dir.join("best.toml")).unwrap();
+    let third = cryofit(&["calibrate", file_arg, "--workers", "2", "--out", out_arg]);
+    assert!(ok(&third).contains("60 evaluations (0 failed)"));
+    assert!(!String::from_utf8_lossy(&third.stderr).contains("resuming"));
+    assert_eq!(stored_evaluations(&database), Some(60));
+    assert!(out_dir.join("best.toml").exists());
+
+    // another calibration into the same folder is refused, naming the way out
+    let other = dir.join("other.toml");
+    std::fs::write(&other, std::fs::read_to_string(&file).unwrap().replace("seed = 7", "seed = 8")).unwrap();
+    let refused = cryofit(&["calibrate", other.to_str().unwrap(), "--out", out_arg]);
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains(out_arg) && err.contains("pick another --out or delete the folder"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

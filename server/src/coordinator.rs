@@ -18,7 +18,7 @@
 //! is recorded as `stale` and not counted. Leases survive a coordinator restart: a worker that
 //! keeps running reports with a lease id that is still valid.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -79,11 +79,17 @@ impl From<sqlx::Error> for CoordError {
     }
 }
 
-/// A running calibration in memory.
+/// A running calibration in memory: its pipeline and what a claim checks and hands out.
 #[derive(Debug, Clone)]
 struct Running {
     pipeline: Pipeline,
     experiments: Vec<i64>,
+    /// Evaluation settings sent with the calibration's jobs.
+    context: api::JobContext,
+    /// Solver version the calibration runs with.
+    solver_version: String,
+    /// Fluid-table hash per fluid.
+    fluid_hashes: BTreeMap<String, String>,
 }
 
 /// The driver (see the module docs).
@@ -91,7 +97,7 @@ struct Running {
 pub struct Coordinator {
     db: Db,
     settings: CoordinatorSettings,
-    running: Mutex<HashMap<i64, Running>>,
+    running: Mutex<BTreeMap<i64, Running>>,
     metrics: Arc<Metrics>,
 }
 
@@ -115,6 +121,49 @@ pub struct Reaped {
     pub failed: usize,
 }
 
+/// One worker result to record (of `POST /jobs/{id}/result` or an item of `POST /jobs/results`).
+#[derive(Debug, Clone, Copy)]
+pub struct Report<'a> {
+    /// The job.
+    pub job: i64,
+    /// The lease the worker quotes.
+    pub lease_id: &'a str,
+    /// The outcome.
+    pub outcome: &'a api::JobOutcome,
+    /// Evaluation wall time, s.
+    pub duration_s: Option<f64>,
+    /// Per-series breakdown.
+    pub breakdown: Option<&'a [api::SeriesCost]>,
+    /// The reporting worker.
+    pub worker: Option<&'a str>,
+}
+
+impl<'a> Report<'a> {
+    /// The report of a single-result request.
+    pub fn single(job: i64, r: &'a api::ResultRequest) -> Self {
+        Self {
+            job,
+            lease_id: &r.lease_id,
+            outcome: &r.outcome,
+            duration_s: r.duration_s,
+            breakdown: r.breakdown.as_deref(),
+            worker: r.worker.as_deref(),
+        }
+    }
+
+    /// The report of a batch item.
+    pub fn batched(r: &'a api::JobResult) -> Self {
+        Self {
+            job: r.job_id,
+            lease_id: &r.lease_id,
+            outcome: &r.outcome,
+            duration_s: r.duration_s,
+            breakdown: r.breakdown.as_deref(),
+            worker: r.worker.as_deref(),
+        }
+    }
+}
+
 fn json<T: serde::Serialize + ?Sized>(v: &T) -> Result<String, CoordError> {
     serde_json::to_string(v).map_err(|e| CoordError::Internal(format!("serialising: {e}")))
 }
@@ -134,21 +183,46 @@ fn progress(p: &Pipeline, status: &'static str, error: Option<String>) -> Result
     })
 }
 
+/// The evaluation settings of a calibration's jobs.
+fn context(id: i64, spec: &api::CreateCalibration) -> api::JobContext {
+    api::JobContext {
+        calibration_id: id,
+        fixed: spec.fixed.clone(),
+        weights: spec.weights.clone(),
+        max_evaluation_s: spec.max_evaluation_s.unwrap_or(cryofit_calib::config::DEFAULT_MAX_EVALUATION_S),
+    }
+}
+
+/// Rebuilds a running calibration from its stored row and optimiser state.
+fn resume(row: &db::CalibrationRow, state: &str) -> Result<Running, String> {
+    let pipeline = serde_json::from_str::<Pipeline>(state)
+        .map_err(|e| format!("the stored optimiser state cannot be read ({e}); resubmit the calibration"))?;
+    let experiments: Vec<i64> =
+        serde_json::from_str(&row.experiment_ids_json).map_err(|e| format!("stored experiment ids: {e}"))?;
+    let spec: api::CreateCalibration =
+        serde_json::from_str(&row.spec_json).map_err(|e| format!("stored calibration spec: {e}"))?;
+    let fluid_hashes: BTreeMap<String, String> =
+        serde_json::from_str(&row.fluid_hashes).map_err(|e| format!("stored fluid hashes: {e}"))?;
+    Ok(Running {
+        pipeline,
+        experiments,
+        context: context(row.id, &spec),
+        solver_version: row.solver_version.clone(),
+        fluid_hashes,
+    })
+}
+
+/// Results of one transaction, per calibration: the evaluations to tell, in arrival order.
+type Told = BTreeMap<i64, Vec<Evaluation>>;
+
 impl Coordinator {
     /// Loads every running calibration's state. A state that cannot be read fails its calibration
     /// (with the reason) instead of stopping the coordinator.
     pub async fn load(db: Db, settings: CoordinatorSettings, metrics: Arc<Metrics>) -> Result<Self, DbError> {
-        let mut running = HashMap::new();
+        let mut running = BTreeMap::new();
         for (id, state) in db::running_states(db.reader()).await? {
             let row = db::calibration(db.reader(), id).await?;
-            let parsed = serde_json::from_str::<Pipeline>(&state)
-                .map_err(|e| format!("the stored optimiser state cannot be read ({e}); resubmit the calibration"))
-                .and_then(|p| {
-                    serde_json::from_str::<Vec<i64>>(&row.experiment_ids_json)
-                        .map(|experiments| Running { pipeline: p, experiments })
-                        .map_err(|e| format!("stored experiment ids: {e}"))
-                });
-            match parsed {
+            match resume(&row, &state) {
                 Ok(r) => {
                     tracing::info!(calibration = id, evaluations = r.pipeline.evaluations().0, "resuming calibration");
                     running.insert(id, r);
@@ -182,22 +256,30 @@ impl Coordinator {
         Ok((2 * slots).max(self.settings.min_queued))
     }
 
-    /// Asks the pipeline for parameter sets until `target` are queued; stores them.
-    /// Returns true when the pipeline changed.
-    async fn top_up(tx: &mut Tx, id: i64, r: &mut Running, target: i64) -> Result<bool, CoordError> {
+    /// When fewer than `low` parameter sets are queued, asks the pipeline for enough to have
+    /// `target` queued and stores them. Returns true when the pipeline changed (its state must
+    /// then be persisted in the same transaction).
+    async fn top_up(tx: &mut Tx, id: i64, r: &mut Running, low: i64, target: i64) -> Result<bool, CoordError> {
         if r.pipeline.is_finished() {
             return Ok(false);
         }
         let per_set = r.experiments.len().max(1) as i64;
         let queued = db::queued_jobs(tx, id).await? / per_set;
-        if queued >= target {
+        if queued >= low.min(target) {
             return Ok(false);
         }
         let jobs = r.pipeline.ask((target - queued) as usize);
-        for j in &jobs {
-            db::insert_parameter_set(tx, id, j.id as i64, j.stage as i64, &json(&j.parameters)?, &r.experiments)
-                .await?;
-        }
+        let sets = jobs
+            .iter()
+            .map(|j| {
+                Ok(db::NewParameterSet {
+                    job: j.id as i64,
+                    stage: j.stage as i64,
+                    parameters_json: json(&j.parameters)?,
+                })
+            })
+            .collect::<Result<Vec<_>, CoordError>>()?;
+        db::insert_parameter_sets(tx, id, &sets, &r.experiments).await?;
         Ok(!jobs.is_empty())
     }
 
@@ -240,9 +322,15 @@ impl Coordinator {
             },
         )
         .await?;
-        let mut r = Running { pipeline: c.pipeline, experiments: c.request.experiments.clone() };
+        let mut r = Running {
+            pipeline: c.pipeline,
+            experiments: c.request.experiments.clone(),
+            context: context(id, &c.request),
+            solver_version: api::SOLVER_VERSION.to_string(),
+            fluid_hashes: c.fluid_hashes,
+        };
         let target = self.target(&mut tx).await?;
-        Self::top_up(&mut tx, id, &mut r, target).await?;
+        Self::top_up(&mut tx, id, &mut r, target, target).await?;
         let (status, error) = Self::status_of(&r.pipeline);
         db::update_progress(&mut tx, id, &progress(&r.pipeline, status, error)?).await?;
         tx.commit().await?;
@@ -263,37 +351,22 @@ impl Coordinator {
         db::touch_worker(&mut tx, &req.worker, i64::from(req.slots.max(1))).await?;
         let mut eligible = Vec::new();
         let mut refused = Vec::new();
-        let mut contexts = HashMap::new();
-        for (id, spec_json, version, hashes_json) in db::running_builds(&mut tx).await? {
-            let hashes: BTreeMap<String, String> = serde_json::from_str(&hashes_json)
-                .map_err(|e| DbError::Corrupt(format!("calibration {id} fluid hashes: {e}")))?;
-            match refusal(&version, &hashes, req) {
+        for (&id, r) in running.iter() {
+            match refusal(&r.solver_version, &r.fluid_hashes, req) {
                 Some(reason) => refused.push(api::Refusal { calibration_id: id, reason }),
-                None => {
-                    let spec: api::CreateCalibration = serde_json::from_str(&spec_json)
-                        .map_err(|e| DbError::Corrupt(format!("calibration {id} spec: {e}")))?;
-                    contexts.insert(
-                        id,
-                        api::JobContext {
-                            calibration_id: id,
-                            fixed: spec.fixed,
-                            weights: spec.weights,
-                            max_evaluation_s: spec
-                                .max_evaluation_s
-                                .unwrap_or(cryofit_calib::config::DEFAULT_MAX_EVALUATION_S),
-                        },
-                    );
-                    eligible.push(id);
-                }
+                None => eligible.push(id),
             }
         }
+        // Results keep the queues topped up (their transaction persists the optimiser state
+        // anyway); a claim asks the optimiser only when a queue cannot serve it.
         let mut changed = Vec::new();
         if !eligible.is_empty() && req.max_jobs > 0 {
             let target = self.target(&mut tx).await?;
             for &id in &eligible {
                 let Some(r) = running.get(&id) else { continue };
+                let low = i64::from(req.max_jobs).div_euclid(r.experiments.len().max(1) as i64).max(1);
                 let mut r = r.clone();
-                if Self::top_up(&mut tx, id, &mut r, target).await? {
+                if Self::top_up(&mut tx, id, &mut r, low, target).await? {
                     db::update_progress(&mut tx, id, &progress(&r.pipeline, "running", None)?).await?;
                     changed.push((id, r));
                 }
@@ -311,7 +384,6 @@ impl Coordinator {
         for (id, r) in changed {
             running.insert(id, r);
         }
-        drop(running);
         let mut jobs = Vec::with_capacity(claimed.len());
         let mut used = std::collections::BTreeSet::new();
         for c in claimed {
@@ -328,7 +400,8 @@ impl Coordinator {
                 parameters,
             });
         }
-        let calibrations = used.into_iter().filter_map(|id| contexts.remove(&id)).collect();
+        let calibrations = used.into_iter().filter_map(|id| running.get(&id).map(|r| r.context.clone())).collect();
+        drop(running);
         self.metrics.claimed(jobs.len(), started.elapsed());
         Ok(api::ClaimResponse { jobs, calibrations, refused })
     }
@@ -361,71 +434,130 @@ impl Coordinator {
     /// Records a worker's result. A result quoting a lease that is not current is stored as
     /// `stale` and not counted.
     pub async fn result(&self, job_id: i64, req: &api::ResultRequest) -> Result<api::ResultResponse, CoordError> {
-        if let api::JobOutcome::Ok { cost } = req.outcome
-            && !(cost.is_finite() && cost >= 0.0)
-        {
+        let mut out = self.record(&[Report::single(job_id, req)], false).await?;
+        out.pop().ok_or_else(|| CoordError::Internal("a result without an answer".into()))
+    }
+
+    /// Records several results in one transaction, in order, and tells each calibration's
+    /// optimiser the parameter sets they complete at once (its state is persisted once). Either
+    /// every result is recorded or none is. Errors name the field as `results[k].…`.
+    pub async fn results(&self, reports: &[Report<'_>]) -> Result<Vec<api::ResultResponse>, CoordError> {
+        self.record(reports, true).await
+    }
+
+    /// Checks what can be checked without the database: costs, durations, repeated jobs.
+    fn check_reports(reports: &[Report<'_>], batch: bool) -> Result<(), CoordError> {
+        let field = |k: usize, f: &str| if batch { format!("results[{k}].{f}") } else { f.to_string() };
+        if batch && reports.is_empty() {
+            return Err(CoordError::Invalid { field: "results".into(), message: "give at least one result".into() });
+        }
+        if reports.len() > api::MAX_RESULT_BATCH {
             return Err(CoordError::Invalid {
-                field: "outcome.cost".into(),
-                message: format!("{cost} is not a finite number ≥ 0; report the evaluation as failed instead"),
+                field: "results".into(),
+                message: format!("{} results: at most {} per request", reports.len(), api::MAX_RESULT_BATCH),
             });
         }
-        if let Some(d) = req.duration_s
-            && !(d.is_finite() && d >= 0.0)
-        {
-            return Err(CoordError::Invalid { field: "duration_s".into(), message: format!("{d}: must be ≥ 0") });
+        let mut seen = std::collections::HashSet::with_capacity(reports.len());
+        for (k, r) in reports.iter().enumerate() {
+            if let api::JobOutcome::Ok { cost } = r.outcome
+                && !(cost.is_finite() && *cost >= 0.0)
+            {
+                return Err(CoordError::Invalid {
+                    field: field(k, "outcome.cost"),
+                    message: format!("{cost} is not a finite number ≥ 0; report the evaluation as failed instead"),
+                });
+            }
+            if let Some(d) = r.duration_s
+                && !(d.is_finite() && d >= 0.0)
+            {
+                return Err(CoordError::Invalid {
+                    field: field(k, "duration_s"),
+                    message: format!("{d}: must be ≥ 0"),
+                });
+            }
+            if !seen.insert(r.job) {
+                return Err(CoordError::Invalid {
+                    field: field(k, "job_id"),
+                    message: format!("job {} is listed twice; report each job once", r.job),
+                });
+            }
         }
-        let breakdown = req.breakdown.as_ref().map(json).transpose()?;
+        Ok(())
+    }
+
+    async fn record(&self, reports: &[Report<'_>], batch: bool) -> Result<Vec<api::ResultResponse>, CoordError> {
+        Self::check_reports(reports, batch)?;
+        let breakdowns = reports.iter().map(|r| r.breakdown.map(json).transpose()).collect::<Result<Vec<_>, _>>()?;
+        let ids: Vec<i64> = reports.iter().map(|r| r.job).collect();
         let mut running = self.running.lock().await;
         let mut tx = self.db.begin().await?;
-        let job = db::job(&mut tx, job_id).await?;
-        let current = job.status == "leased" && job.lease_id.as_deref() == Some(req.lease_id.as_str());
-        let (status, cost, reason) = match (&req.outcome, current) {
-            (_, false) => ("stale", None, None),
-            (api::JobOutcome::Ok { cost }, true) => ("ok", Some(*cost), None),
-            (api::JobOutcome::Failed { reason }, true) => ("failed", None, Some(reason.as_str())),
-        };
-        let stale_cost = match (&req.outcome, current) {
-            (api::JobOutcome::Ok { cost }, false) => Some(*cost),
-            _ => cost,
-        };
-        let stale_reason = match (&req.outcome, current) {
-            (api::JobOutcome::Failed { reason }, false) => Some(reason.as_str()),
-            _ => reason,
-        };
-        db::record_result(
-            &mut tx,
-            &db::NewResult {
-                job: &job,
+        let rows: std::collections::HashMap<i64, db::JobRow> =
+            db::jobs(&mut tx, &ids).await?.into_iter().map(|j| (j.id, j)).collect();
+        let mut out = Vec::with_capacity(reports.len());
+        let mut results = Vec::with_capacity(reports.len());
+        let mut sets = Vec::new();
+        let mut per_worker: BTreeMap<&str, i64> = BTreeMap::new();
+        for (k, (r, breakdown)) in reports.iter().zip(breakdowns).enumerate() {
+            let Some(job) = rows.get(&r.job) else {
+                return Err(if batch {
+                    CoordError::Invalid {
+                        field: format!("results[{k}].job_id"),
+                        message: format!("job {} does not exist", r.job),
+                    }
+                } else {
+                    DbError::NotFound { what: "job", id: r.job }.into()
+                });
+            };
+            let current = job.status == "leased" && job.lease_id.as_deref() == Some(r.lease_id);
+            let (status, cost, reason) = match r.outcome {
+                api::JobOutcome::Ok { cost } => (if current { "ok" } else { "stale" }, Some(*cost), None),
+                api::JobOutcome::Failed { reason } => {
+                    (if current { "failed" } else { "stale" }, None, Some(reason.as_str()))
+                }
+            };
+            results.push(db::NewResult {
+                job,
                 status,
-                cost: stale_cost,
-                reason: stale_reason,
-                worker: req.worker.as_deref(),
-                duration: req.duration_s,
+                cost,
+                reason,
+                worker: r.worker,
+                duration: r.duration_s,
                 breakdown_json: breakdown,
-            },
-        )
-        .await?;
-        let mut changed = HashMap::new();
-        if current {
-            self.complete_if_done(&mut tx, &running, &mut changed, &job).await?;
+            });
+            if current {
+                if let Some(w) = r.worker {
+                    *per_worker.entry(w).or_default() += 1;
+                }
+                if !sets.contains(&job.parameter_set_id) {
+                    sets.push(job.parameter_set_id);
+                }
+            }
+            out.push(api::ResultResponse { status: status.to_string(), counted: current });
         }
+        db::record_results(&mut tx, &results).await?;
+        for (worker, n) in per_worker {
+            db::count_evaluations(&mut tx, worker, n).await?;
+        }
+        let told = Self::finish_sets(&mut tx, &sets).await?;
+        let changed = self.tell(&mut tx, &running, told).await?;
         tx.commit().await?;
         Self::apply(&mut running, changed);
         drop(running);
-        if let Some(d) = req.duration_s
-            && current
-        {
-            self.metrics.evaluated(d);
+        for (r, o) in reports.iter().zip(&out) {
+            if o.counted {
+                if let Some(d) = r.duration_s {
+                    self.metrics.evaluated(d);
+                }
+            } else {
+                self.metrics.stale();
+                tracing::info!(job = r.job, lease = %r.lease_id, "stale result recorded, not counted");
+            }
         }
-        if !current {
-            self.metrics.stale();
-            tracing::info!(job = job_id, lease = %req.lease_id, "stale result recorded, not counted");
-        }
-        Ok(api::ResultResponse { status: status.to_string(), counted: current })
+        Ok(out)
     }
 
     /// Replaces in-memory pipelines after a commit (dropping finished ones).
-    fn apply(running: &mut HashMap<i64, Running>, changed: HashMap<i64, Running>) {
+    fn apply(running: &mut BTreeMap<i64, Running>, changed: BTreeMap<i64, Running>) {
         for (id, r) in changed {
             if Self::status_of(&r.pipeline).0 == "running" {
                 running.insert(id, r);
@@ -435,57 +567,83 @@ impl Coordinator {
         }
     }
 
-    /// When every job of `job`'s parameter set is in: sums the costs (any failure fails the set),
-    /// tells the optimiser, asks for more and persists the state, all in `tx`.
-    async fn complete_if_done(
+    /// Finishes the parameter sets (of `sets`, in that order) whose jobs are all in: sums their
+    /// costs in experiment order (any failure fails the set) and returns, per calibration, the
+    /// evaluations to tell.
+    async fn finish_sets(tx: &mut Tx, sets: &[i64]) -> Result<Told, CoordError> {
+        let mut told = Told::new();
+        if sets.is_empty() {
+            return Ok(told);
+        }
+        let parts = db::pending_set_parts(tx, sets).await?;
+        let mut by_set: std::collections::HashMap<i64, Vec<&db::SetPart>> = std::collections::HashMap::new();
+        for p in &parts {
+            by_set.entry(p.parameter_set_id).or_default().push(p);
+        }
+        let mut finished = Vec::new();
+        for id in sets {
+            let Some(parts) = by_set.get(id) else { continue };
+            if parts.iter().any(|p| p.status == "queued" || p.status == "leased") {
+                continue;
+            }
+            let mut outcome = Outcome::Ok { cost: 0.0 };
+            for p in parts {
+                match (p.status.as_str(), &mut outcome) {
+                    ("done", Outcome::Ok { cost: total }) => *total += p.cost.unwrap_or(f64::NAN),
+                    ("failed", Outcome::Ok { .. }) => {
+                        outcome = Outcome::Failed { reason: p.reason.clone().unwrap_or_else(|| "failed".into()) };
+                    }
+                    _ => {}
+                }
+            }
+            let first = parts[0];
+            told.entry(first.calibration_id)
+                .or_default()
+                .push(Evaluation { id: first.pipeline_job as u64, outcome: outcome.clone() });
+            finished.push((*id, outcome));
+        }
+        let rows: Vec<db::FinishedSet<'_>> = finished
+            .iter()
+            .map(|(id, o)| match o {
+                Outcome::Ok { cost } => (*id, "ok", Some(*cost), None),
+                Outcome::Failed { reason } => (*id, "failed", None, Some(reason.as_str())),
+            })
+            .collect();
+        db::finish_parameter_sets(tx, &rows).await?;
+        Ok(told)
+    }
+
+    /// Tells each running calibration its completed parameter sets, asks for more and persists
+    /// its state, all in `tx`. Returns the changed pipelines, to apply after the commit.
+    async fn tell(
         &self,
         tx: &mut Tx,
-        running: &HashMap<i64, Running>,
-        changed: &mut HashMap<i64, Running>,
-        job: &db::JobRow,
-    ) -> Result<(), CoordError> {
-        let parts = db::parameter_set_jobs(tx, job.parameter_set_id).await?;
-        if parts.iter().any(|(s, _, _)| s == "queued" || s == "leased") {
-            return Ok(());
+        running: &BTreeMap<i64, Running>,
+        told: Told,
+    ) -> Result<BTreeMap<i64, Running>, CoordError> {
+        let mut changed = BTreeMap::new();
+        if told.is_empty() {
+            return Ok(changed);
         }
-        let mut outcome = Outcome::Ok { cost: 0.0 };
-        for (status, cost, reason) in &parts {
-            match (status.as_str(), &mut outcome) {
-                ("done", Outcome::Ok { cost: total }) => *total += cost.unwrap_or(f64::NAN),
-                ("failed", Outcome::Ok { .. }) => {
-                    outcome = Outcome::Failed { reason: reason.clone().unwrap_or_else(|| "failed".into()) };
-                }
-                _ => {}
-            }
-        }
-        let (status, cost, reason) = match &outcome {
-            Outcome::Ok { cost } => ("ok", Some(*cost), None),
-            Outcome::Failed { reason } => ("failed", None, Some(reason.as_str())),
-        };
-        let pipeline_job = db::finish_parameter_set(tx, job.parameter_set_id, status, cost, reason).await?;
-        let id = job.calibration_id;
-        if db::calibration_status(tx, id).await? != "running" {
-            return Ok(());
-        }
-        let mut r = match changed.remove(&id) {
-            Some(r) => r,
-            None => match running.get(&id) {
-                Some(r) => r.clone(),
-                None => return Ok(()),
-            },
-        };
-        r.pipeline
-            .tell(&[Evaluation { id: pipeline_job as u64, outcome }])
-            .map_err(|e| CoordError::Internal(format!("calibration {id}: the optimiser rejected a result: {e}")))?;
         let target = self.target(tx).await?;
-        Self::top_up(tx, id, &mut r, target).await?;
-        let (status, error) = Self::status_of(&r.pipeline);
-        db::update_progress(tx, id, &progress(&r.pipeline, status, error)?).await?;
-        if status != "running" {
-            tracing::info!(calibration = id, status, "calibration finished");
+        for (id, evaluations) in told {
+            let Some(r) = running.get(&id) else { continue };
+            if db::calibration_status(tx, id).await? != "running" {
+                continue;
+            }
+            let mut r = r.clone();
+            r.pipeline
+                .tell(&evaluations)
+                .map_err(|e| CoordError::Internal(format!("calibration {id}: the optimiser rejected a result: {e}")))?;
+            Self::top_up(tx, id, &mut r, target, target).await?;
+            let (status, error) = Self::status_of(&r.pipeline);
+            db::update_progress(tx, id, &progress(&r.pipeline, status, error)?).await?;
+            if status != "running" {
+                tracing::info!(calibration = id, status, "calibration finished");
+            }
+            changed.insert(id, r);
         }
-        changed.insert(id, r);
-        Ok(())
+        Ok(changed)
     }
 
     /// Re-queues jobs whose lease expired, or fails them after too many attempts.
@@ -494,33 +652,37 @@ impl Coordinator {
         let mut tx = self.db.begin().await?;
         let expired = db::expired_jobs(&mut tx, now_ms()).await?;
         let mut out = Reaped::default();
-        let mut changed = HashMap::new();
-        for j in &expired {
+        let reasons: Vec<String> = expired
+            .iter()
+            .map(|j| {
+                format!("the lease expired {} times without a result (worker lost or evaluation stuck)", j.attempts)
+            })
+            .collect();
+        let mut failed = Vec::new();
+        let mut sets = Vec::new();
+        for (j, reason) in expired.iter().zip(&reasons) {
             if j.attempts >= self.settings.max_attempts {
-                let reason = format!(
-                    "the lease expired {} times without a result (worker lost or evaluation stuck)",
-                    j.attempts
-                );
-                db::record_result(
-                    &mut tx,
-                    &db::NewResult {
-                        job: j,
-                        status: "failed",
-                        cost: None,
-                        reason: Some(&reason),
-                        worker: None,
-                        duration: None,
-                        breakdown_json: None,
-                    },
-                )
-                .await?;
-                self.complete_if_done(&mut tx, &running, &mut changed, j).await?;
+                failed.push(db::NewResult {
+                    job: j,
+                    status: "failed",
+                    cost: None,
+                    reason: Some(reason),
+                    worker: None,
+                    duration: None,
+                    breakdown_json: None,
+                });
+                if !sets.contains(&j.parameter_set_id) {
+                    sets.push(j.parameter_set_id);
+                }
                 out.failed += 1;
             } else {
                 db::requeue(&mut tx, j.id).await?;
                 out.requeued += 1;
             }
         }
+        db::record_results(&mut tx, &failed).await?;
+        let told = Self::finish_sets(&mut tx, &sets).await?;
+        let changed = self.tell(&mut tx, &running, told).await?;
         tx.commit().await?;
         Self::apply(&mut running, changed);
         if !expired.is_empty() {

@@ -290,17 +290,6 @@ pub async fn running_states(pool: &SqlitePool) -> Result<Vec<(i64, String)>, DbE
     Ok(rows.into_iter().map(|r| (r.get(0), r.get(1))).collect())
 }
 
-/// What a worker is checked against, per running calibration: (id, spec JSON, solver version,
-/// fluid hashes JSON).
-pub async fn running_builds(tx: &mut SqliteConnection) -> Result<Vec<(i64, String, String, String)>, DbError> {
-    let rows = sqlx::query(
-        "SELECT id, spec_json, solver_version, fluid_hashes FROM calibrations WHERE status = 'running' ORDER BY id",
-    )
-    .fetch_all(tx)
-    .await?;
-    Ok(rows.into_iter().map(|r| (r.get(0), r.get(1), r.get(2), r.get(3))).collect())
-}
-
 /// A calibration's status inside a transaction.
 pub async fn calibration_status(tx: &mut SqliteConnection, id: i64) -> Result<String, DbError> {
     let row = sqlx::query("SELECT status FROM calibrations WHERE id = ?")
@@ -393,41 +382,63 @@ pub async fn cancel_calibration(tx: &mut SqliteConnection, id: i64) -> Result<St
 // ---------------------------------------------------------------------------------------------
 // parameter sets and jobs
 
-/// Stores a parameter set (a pipeline job) and one queued job per experiment.
-pub async fn insert_parameter_set(
+/// Rows per multi-row statement (SQLite allows 32 766 bound values; 11 per row at most here).
+const ROWS_PER_STATEMENT: usize = 1000;
+
+/// A parameter set to store: the pipeline's job id, its stage and the parameter values as JSON.
+#[derive(Debug, Clone)]
+pub struct NewParameterSet {
+    /// The pipeline's job id.
+    pub job: i64,
+    /// Stage that asked for it.
+    pub stage: i64,
+    /// Parameter values JSON.
+    pub parameters_json: String,
+}
+
+/// Stores parameter sets (pipeline jobs) in the order given, each with one queued job per
+/// experiment (job ids follow the sets' order, then the experiments' order), in two statements
+/// per thousand sets.
+pub async fn insert_parameter_sets(
     tx: &mut SqliteConnection,
     calibration_id: i64,
-    job: i64,
-    stage: i64,
-    parameters_json: &str,
+    sets: &[NewParameterSet],
     experiments: &[i64],
-) -> Result<i64, DbError> {
+) -> Result<(), DbError> {
     let now = now_ms();
-    let row = sqlx::query(
-        "INSERT INTO parameter_sets (calibration_id, job, stage, parameters_json, status, created)
-         VALUES (?, ?, ?, ?, 'pending', ?) RETURNING id",
-    )
-    .bind(calibration_id)
-    .bind(job)
-    .bind(stage)
-    .bind(parameters_json)
-    .bind(now)
-    .fetch_one(&mut *tx)
-    .await?;
-    let ps: i64 = row.get(0);
-    for &e in experiments {
-        sqlx::query(
-            "INSERT INTO jobs (calibration_id, parameter_set_id, experiment_id, status, created)
-             VALUES (?, ?, ?, 'queued', ?)",
-        )
-        .bind(calibration_id)
-        .bind(ps)
-        .bind(e)
-        .bind(now)
-        .execute(&mut *tx)
-        .await?;
+    for chunk in sets.chunks(ROWS_PER_STATEMENT) {
+        let mut q = sqlx::QueryBuilder::<sqlx::Sqlite>::new(
+            "INSERT INTO parameter_sets (calibration_id, job, stage, parameters_json, status, created) ",
+        );
+        q.push_values(chunk, |mut b, s| {
+            b.push_bind(calibration_id)
+                .push_bind(s.job)
+                .push_bind(s.stage)
+                .push_bind(&s.parameters_json)
+                .push_bind("pending")
+                .push_bind(now);
+        });
+        q.push(" RETURNING id, job");
+        let rows = q.build().persistent(false).fetch_all(&mut *tx).await?;
+        let ids: std::collections::HashMap<i64, i64> = rows.iter().map(|r| (r.get(1), r.get(0))).collect();
+        let mut jobs = Vec::with_capacity(chunk.len() * experiments.len());
+        for s in chunk {
+            let ps = *ids
+                .get(&s.job)
+                .ok_or_else(|| DbError::Corrupt(format!("parameter set of job {} was not stored", s.job)))?;
+            jobs.extend(experiments.iter().map(|&e| (ps, e)));
+        }
+        for part in jobs.chunks(ROWS_PER_STATEMENT) {
+            let mut q = sqlx::QueryBuilder::<sqlx::Sqlite>::new(
+                "INSERT INTO jobs (calibration_id, parameter_set_id, experiment_id, status, created) ",
+            );
+            q.push_values(part, |mut b, &(ps, e)| {
+                b.push_bind(calibration_id).push_bind(ps).push_bind(e).push_bind("queued").push_bind(now);
+            });
+            q.build().persistent(false).execute(&mut *tx).await?;
+        }
     }
-    Ok(ps)
+    Ok(())
 }
 
 /// Number of queued jobs of a calibration.
@@ -589,6 +600,18 @@ pub async fn job(tx: &mut SqliteConnection, id: i64) -> Result<JobRow, DbError> 
     Ok(job_row(&row))
 }
 
+/// Jobs by id, in id order; ids that do not exist are left out.
+pub async fn jobs(tx: &mut SqliteConnection, ids: &[i64]) -> Result<Vec<JobRow>, DbError> {
+    let ids = serde_json::to_string(ids).map_err(|e| DbError::Corrupt(e.to_string()))?;
+    let rows = sqlx::query(&format!(
+        "SELECT {JOB_COLUMNS} FROM jobs WHERE id IN (SELECT value FROM json_each(?)) ORDER BY id"
+    ))
+    .bind(ids)
+    .fetch_all(tx)
+    .await?;
+    Ok(rows.iter().map(job_row).collect())
+}
+
 /// Leased jobs whose lease expired before `now_ms`.
 pub async fn expired_jobs(tx: &mut SqliteConnection, now_ms: i64) -> Result<Vec<JobRow>, DbError> {
     let rows = sqlx::query(&format!(
@@ -611,6 +634,20 @@ pub async fn requeue(tx: &mut SqliteConnection, id: i64) -> Result<(), DbError> 
     Ok(())
 }
 
+/// Puts every leased job back in the queue, as if its lease had never been given (the attempt
+/// is not counted). For a database whose previous coordinator and workers are known to be gone.
+/// Returns the number of jobs released.
+pub async fn release_leases(tx: &mut SqliteConnection) -> Result<u64, DbError> {
+    let done = sqlx::query(
+        "UPDATE jobs SET status = 'queued', lease_id = NULL, lease_owner = NULL, lease_expires = NULL,
+                attempts = MAX(attempts - 1, 0)
+         WHERE status = 'leased'",
+    )
+    .execute(tx)
+    .await?;
+    Ok(done.rows_affected())
+}
+
 /// A result to record.
 #[derive(Debug, Clone)]
 pub struct NewResult<'a> {
@@ -630,81 +667,121 @@ pub struct NewResult<'a> {
     pub breakdown_json: Option<String>,
 }
 
-/// Records a result; unless stale, also finishes the job (`done` or `failed`) and counts it for
-/// the worker.
-pub async fn record_result(tx: &mut SqliteConnection, r: &NewResult<'_>) -> Result<(), DbError> {
-    sqlx::query(
-        "INSERT INTO cost_results (calibration_id, job_id, parameter_set_id, experiment_id, status, cost, reason,
-                                   worker, duration, breakdown_json, created)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-    )
-    .bind(r.job.calibration_id)
-    .bind(r.job.id)
-    .bind(r.job.parameter_set_id)
-    .bind(r.job.experiment_id)
-    .bind(r.status)
-    .bind(r.cost)
-    .bind(r.reason)
-    .bind(r.worker)
-    .bind(r.duration)
-    .bind(&r.breakdown_json)
-    .bind(now_ms())
-    .execute(&mut *tx)
-    .await?;
-    if r.status == "stale" {
-        return Ok(());
-    }
-    let status = if r.status == "ok" { "done" } else { "failed" };
-    sqlx::query(
-        "UPDATE jobs SET status = ?, cost = ?, reason = ?, duration = ?, lease_id = NULL, lease_expires = NULL
-         WHERE id = ?",
-    )
-    .bind(status)
-    .bind(r.cost)
-    .bind(r.reason)
-    .bind(r.duration)
-    .bind(r.job.id)
-    .execute(&mut *tx)
-    .await?;
-    if let Some(w) = r.worker {
-        sqlx::query("UPDATE workers SET evaluations = evaluations + 1, last_heartbeat = ? WHERE name = ?")
-            .bind(now_ms())
-            .bind(w)
-            .execute(&mut *tx)
-            .await?;
+/// Records results in the order given (one statement per thousand); the ones that are not stale
+/// also finish their job (`done` or `failed`, one more statement). The worker's count is kept by
+/// [`count_evaluations`].
+pub async fn record_results(tx: &mut SqliteConnection, results: &[NewResult<'_>]) -> Result<(), DbError> {
+    let now = now_ms();
+    for chunk in results.chunks(ROWS_PER_STATEMENT) {
+        let mut q = sqlx::QueryBuilder::<sqlx::Sqlite>::new(
+            "INSERT INTO cost_results (calibration_id, job_id, parameter_set_id, experiment_id, status, cost, reason,
+                                       worker, duration, breakdown_json, created) ",
+        );
+        q.push_values(chunk, |mut b, r| {
+            b.push_bind(r.job.calibration_id)
+                .push_bind(r.job.id)
+                .push_bind(r.job.parameter_set_id)
+                .push_bind(r.job.experiment_id)
+                .push_bind(r.status)
+                .push_bind(r.cost)
+                .push_bind(r.reason)
+                .push_bind(r.worker)
+                .push_bind(r.duration)
+                .push_bind(r.breakdown_json.as_deref())
+                .push_bind(now);
+        });
+        q.build().persistent(false).execute(&mut *tx).await?;
+        let finished: Vec<&NewResult<'_>> = chunk.iter().filter(|r| r.status != "stale").collect();
+        if finished.is_empty() {
+            continue;
+        }
+        let mut q = sqlx::QueryBuilder::<sqlx::Sqlite>::new(
+            "UPDATE jobs SET status = v.column2, cost = v.column3, reason = v.column4, duration = v.column5,
+                             lease_id = NULL, lease_expires = NULL
+             FROM (",
+        );
+        q.push_values(finished, |mut b, r| {
+            b.push_bind(r.job.id)
+                .push_bind(if r.status == "ok" { "done" } else { "failed" })
+                .push_bind(r.cost)
+                .push_bind(r.reason)
+                .push_bind(r.duration);
+        });
+        q.push(") AS v WHERE jobs.id = v.column1");
+        q.build().persistent(false).execute(&mut *tx).await?;
     }
     Ok(())
 }
 
-/// The jobs of a parameter set in id (= experiment) order: (status, cost, reason).
-pub async fn parameter_set_jobs(
-    tx: &mut SqliteConnection,
-    parameter_set_id: i64,
-) -> Result<Vec<(String, Option<f64>, Option<String>)>, DbError> {
-    let rows = sqlx::query("SELECT status, cost, reason FROM jobs WHERE parameter_set_id = ? ORDER BY id")
-        .bind(parameter_set_id)
-        .fetch_all(tx)
+/// Counts `n` results for a worker and marks it seen.
+pub async fn count_evaluations(tx: &mut SqliteConnection, worker: &str, n: i64) -> Result<(), DbError> {
+    sqlx::query("UPDATE workers SET evaluations = evaluations + ?, last_heartbeat = ? WHERE name = ?")
+        .bind(n)
+        .bind(now_ms())
+        .bind(worker)
+        .execute(tx)
         .await?;
-    Ok(rows.into_iter().map(|r| (r.get(0), r.get(1), r.get(2))).collect())
+    Ok(())
 }
 
-/// Finishes a parameter set; returns its pipeline job id.
-pub async fn finish_parameter_set(
-    tx: &mut SqliteConnection,
-    id: i64,
-    status: &'static str,
-    cost: Option<f64>,
-    reason: Option<&str>,
-) -> Result<i64, DbError> {
-    let row = sqlx::query("UPDATE parameter_sets SET status = ?, cost = ?, reason = ? WHERE id = ? RETURNING job")
-        .bind(status)
-        .bind(cost)
-        .bind(reason)
-        .bind(id)
-        .fetch_optional(tx)
-        .await?
-        .ok_or(DbError::NotFound { what: "parameter set", id })?;
-    Ok(row.get(0))
+/// One job of a parameter set, with the set's calibration and pipeline job id.
+#[derive(Debug, Clone)]
+pub struct SetPart {
+    /// Parameter set.
+    pub parameter_set_id: i64,
+    /// Its calibration.
+    pub calibration_id: i64,
+    /// Its pipeline job id.
+    pub pipeline_job: i64,
+    /// The job's status.
+    pub status: String,
+    /// The job's cost.
+    pub cost: Option<f64>,
+    /// The job's failure reason.
+    pub reason: Option<String>,
+}
+
+/// The jobs of pending parameter sets, by set and then job id (= experiment order).
+pub async fn pending_set_parts(tx: &mut SqliteConnection, sets: &[i64]) -> Result<Vec<SetPart>, DbError> {
+    let ids = serde_json::to_string(sets).map_err(|e| DbError::Corrupt(e.to_string()))?;
+    let rows = sqlx::query(
+        "SELECT j.parameter_set_id, p.calibration_id, p.job, j.status, j.cost, j.reason
+         FROM jobs j JOIN parameter_sets p ON p.id = j.parameter_set_id
+         WHERE j.parameter_set_id IN (SELECT value FROM json_each(?)) AND p.status = 'pending'
+         ORDER BY j.parameter_set_id, j.id",
+    )
+    .bind(ids)
+    .fetch_all(tx)
+    .await?;
+    Ok(rows
+        .into_iter()
+        .map(|r| SetPart {
+            parameter_set_id: r.get(0),
+            calibration_id: r.get(1),
+            pipeline_job: r.get(2),
+            status: r.get(3),
+            cost: r.get(4),
+            reason: r.get(5),
+        })
+        .collect())
+}
+
+/// A finished parameter set: (id, `ok` or `failed`, summed cost, reason).
+pub type FinishedSet<'a> = (i64, &'static str, Option<f64>, Option<&'a str>);
+
+/// Finishes parameter sets (one statement per thousand).
+pub async fn finish_parameter_sets(tx: &mut SqliteConnection, sets: &[FinishedSet<'_>]) -> Result<(), DbError> {
+    for chunk in sets.chunks(ROWS_PER_STATEMENT) {
+        let mut q = sqlx::QueryBuilder::<sqlx::Sqlite>::new(
+            "UPDATE parameter_sets SET status = v.column2, cost = v.column3, reason = v.column4 FROM (",
+        );
+        q.push_values(chunk, |mut b, &(id, status, cost, reason)| {
+            b.push_bind(id).push_bind(status).push_bind(cost).push_bind(reason);
+        });
+        q.push(") AS v WHERE parameter_sets.id = v.column1");
+        q.build().persistent(false).execute(&mut *tx).await?;
+    }
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -247,6 +247,10 @@ impl Embedded {
 
 /// Starts a coordinator on `127.0.0.1` (a free port) with its SQLite database at `database`,
 /// without tokens (loopback only), in the current tokio runtime.
+///
+/// The database is taken to be private to this process (the caller makes sure no other
+/// coordinator serves it): jobs still leased by an earlier, ended process are put back in the
+/// queue at once instead of waiting for their leases to expire.
 pub async fn start_embedded(database: &std::path::Path, mut settings: Settings) -> Result<Embedded, ServerError> {
     settings.database_url = format!("sqlite://{}", database.display());
     settings.client_token = None;
@@ -254,7 +258,19 @@ pub async fn start_embedded(database: &std::path::Path, mut settings: Settings) 
     let listener = tokio::net::TcpListener::bind(("127.0.0.1", 0)).await?;
     let addr = listener.local_addr()?;
     // open once here so that errors (a bad path, a failed migration) surface before returning
-    db::Db::open(&settings.database_url).await?.close().await;
+    let db = db::Db::open(&settings.database_url).await?;
+    let released = async {
+        let mut tx = db.begin().await?;
+        let n = db::release_leases(&mut tx).await?;
+        tx.commit().await.map_err(db::DbError::from)?;
+        Ok::<_, db::DbError>(n)
+    }
+    .await;
+    db.close().await;
+    let released = released?;
+    if released > 0 {
+        tracing::info!(jobs = released, "released the leases of an earlier process");
+    }
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let handle = tokio::spawn(launch(listener, settings, async move {
         let _ = rx.await;

@@ -21,6 +21,7 @@ use crate::routes;
         routes::claim,
         routes::heartbeat,
         routes::result,
+        routes::results_batch,
     ),
     components(schemas(
         api::ErrorBody,
@@ -43,6 +44,9 @@ use crate::routes;
         api::HeartbeatResponse,
         api::ResultRequest,
         api::ResultResponse,
+        api::JobResult,
+        api::ResultBatch,
+        api::ResultBatchResponse,
         api::JobOutcome,
         api::SeriesCost,
         api::Health,

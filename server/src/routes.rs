@@ -17,7 +17,7 @@ use serde::de::DeserializeOwned;
 use tower_http::trace::TraceLayer;
 
 use crate::AppState;
-use crate::coordinator::{CoordError, NewCalibration};
+use crate::coordinator::{CoordError, NewCalibration, Report};
 use crate::db::{self, DbError};
 use crate::validate::{self, Invalid};
 
@@ -267,6 +267,7 @@ pub fn router(state: AppState) -> Router {
         .route("/jobs/claim", post(claim))
         .route("/jobs/{id}/heartbeat", post(heartbeat))
         .route("/jobs/{id}/result", post(result))
+        .route("/jobs/results", post(results_batch))
         .route("/openapi.json", get(openapi))
         .layer(middleware::from_fn_with_state(state.clone(), auth));
     Router::new()
@@ -625,4 +626,15 @@ pub(crate) async fn result(
     JsonBody(req): JsonBody<api::ResultRequest>,
 ) -> ApiResult<Json<api::ResultResponse>> {
     Ok(Json(state.coordinator.result(id, &req).await?))
+}
+
+#[utoipa::path(post, path = "/api/v1/jobs/results", request_body = api::ResultBatch,
+    responses((status = 200, body = api::ResultBatchResponse), (status = 422, body = api::ErrorBody)))]
+#[tracing::instrument(skip_all, fields(results = req.results.len()))]
+pub(crate) async fn results_batch(
+    State(state): State<AppState>,
+    JsonBody(req): JsonBody<api::ResultBatch>,
+) -> ApiResult<Json<api::ResultBatchResponse>> {
+    let reports: Vec<Report<'_>> = req.results.iter().map(Report::batched).collect();
+    Ok(Json(api::ResultBatchResponse { results: state.coordinator.results(&reports).await? }))
 }

@@ -754,9 +754,15 @@ impl<'a> Scheme<'a> {
             // pressure work, compression by liquid hammer), and the reset moves at most a trace
             // of energy, booked as an adjustment in the budget.
             let recover = |phase: Phase, m: f64, e: f64, guess: f64, other_t: f64, budget: &mut StepBudget| {
-                let (name, what) = match phase {
-                    Phase::Gas => ("gas temperature", "gas energy outside the property table"),
-                    Phase::Liquid => ("liquid temperature", "liquid energy outside the property table"),
+                let (name, energy_name, what) = match phase {
+                    Phase::Gas => {
+                        ("gas temperature", "gas specific energy (J/kg)", "gas energy outside the property table")
+                    }
+                    Phase::Liquid => (
+                        "liquid temperature",
+                        "liquid specific energy (J/kg)",
+                        "liquid energy outside the property table",
+                    ),
                 };
                 let target = clamp_to_phase(fluid, phase, p, other_t);
                 let reset = |budget: &mut StepBudget| -> Result<(f64, PhaseProps, f64, bool), Rejection> {
@@ -801,7 +807,8 @@ impl<'a> Scheme<'a> {
                         budget.adjustment += (m * pr.u - e) * g.volume[i];
                         Ok((t, pr, m * pr.u, true))
                     }
-                    Err(_) => Err(Rejection { cell: i, variable: name, value: e / m, reason: what }),
+                    // the value is the specific internal energy, J/kg (no temperature fits it)
+                    Err(_) => Err(Rejection { cell: i, variable: energy_name, value: e / m, reason: what }),
                 }
             };
             let (tg, gp, eg, reset_g) = recover(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, &mut budget)?;

@@ -158,6 +158,29 @@ impl Client {
         self.call(Method::GET, &format!("/experiments/{id}"), None::<&()>).await
     }
 
+    /// Every stored experiment, without its texts (all pages).
+    pub async fn experiments(&self) -> Result<Vec<api::ExperimentSummary>, ClientError> {
+        self.pages(|offset| format!("/experiments?limit=1000&offset={offset}")).await
+    }
+
+    /// Every calibration (all pages).
+    pub async fn calibrations(&self) -> Result<Vec<api::Calibration>, ClientError> {
+        self.pages(|offset| format!("/calibrations?limit=1000&offset={offset}")).await
+    }
+
+    async fn pages<T: DeserializeOwned>(&self, path: impl Fn(i64) -> String) -> Result<Vec<T>, ClientError> {
+        let mut out = Vec::new();
+        let mut offset = 0;
+        loop {
+            let page: api::Page<T> = self.call(Method::GET, &path(offset), None::<&()>).await?;
+            out.extend(page.items);
+            match page.next_offset {
+                Some(n) => offset = n,
+                None => return Ok(out),
+            }
+        }
+    }
+
     /// `POST /calibrations`.
     pub async fn create_calibration(&self, c: &api::CreateCalibration) -> Result<api::Created, ClientError> {
         self.call(Method::POST, "/calibrations", Some(c)).await
@@ -235,6 +258,11 @@ impl Client {
     pub async fn heartbeat(&self, job: i64, lease_id: &str) -> Result<api::HeartbeatResponse, ClientError> {
         let body = api::HeartbeatRequest { lease_id: lease_id.to_string() };
         self.call(Method::POST, &format!("/jobs/{job}/heartbeat"), Some(&body)).await
+    }
+
+    /// `POST /jobs/results`: several results in one request and one transaction.
+    pub async fn report(&self, batch: &api::ResultBatch) -> Result<api::ResultBatchResponse, ClientError> {
+        self.call(Method::POST, "/jobs/results", Some(batch)).await
     }
 
     /// `POST /jobs/{id}/result`.

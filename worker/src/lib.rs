@@ -245,7 +245,7 @@ pub async fn run(
             let req = api::ClaimRequest {
                 worker: settings.name.clone(),
                 slots: slots as u32,
-                max_jobs: (2 * slots - in_hand) as u32,
+                max_jobs: (2 * slots - in_hand).min(1000) as u32,
                 solver_version: api::SOLVER_VERSION.to_string(),
                 fluid_hashes: hashes.clone(),
             };
@@ -319,6 +319,9 @@ pub async fn run(
                     Event::Reported { job, response, failed } => {
                         reporting -= 1;
                         held.remove(&job);
+                        // a counted result may have completed a generation: claim again at once
+                        next_claim = Instant::now();
+                        claim_delay = Duration::from_millis(50);
                         match response {
                             Ok(r) if r.counted => {
                                 summary.counted += 1;

@@ -53,7 +53,8 @@ impl Visitor<'_> for F64Visitor {
 
 impl Exact for f64 {
     fn ser<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&format!("{self:?}"))
+        // written straight into the output: no temporary string per float
+        s.collect_str(&format_args!("{self:?}"))
     }
 
     fn de<'de, D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {

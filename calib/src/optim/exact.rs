@@ -18,7 +18,8 @@ pub(crate) struct ExactF64(f64);
 
 impl Serialize for ExactF64 {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&format!("{:?}", self.0))
+        // written straight into the output: no temporary string per float
+        s.collect_str(&format_args!("{:?}", self.0))
     }
 }
 

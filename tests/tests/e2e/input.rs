@@ -187,6 +187,71 @@ fn refuses_a_public_bind_without_tokens() {
     assert!(p.logs().contains("without tokens"), "{}", p.logs());
 }
 
+/// `POST /jobs/results`: each bad item is named by its index and the whole batch is refused (no
+/// result stored); a good batch is counted like single results, and a repeated one is stale.
+#[test]
+fn result_batches_are_validated_and_counted() {
+    let dir = scratch("batch");
+    let s = Server::start(&dir, "serve", "127.0.0.1:0", &dir.join("c.db"), &[]);
+    let api = format!("{}/api/v1", s.url);
+    let post =
+        |path: &str, body: &Value| send("POST", &format!("{api}{path}"), Some(body.to_string().into_bytes()), None);
+    let e = post("/experiments", &experiment_body());
+    assert_eq!(e.0, 201, "{:?}", e.1);
+    let c = post("/calibrations", &calibration_body(e.1["id"].as_i64().unwrap()));
+    assert_eq!(c.0, 201, "{:?}", c.1);
+    let claim = json!({"worker": "w", "slots": 2, "max_jobs": 2, "solver_version": env!("CARGO_PKG_VERSION"),
+                       "fluid_hashes": {}});
+    let claimed = post("/jobs/claim", &claim);
+    assert_eq!(claimed.0, 200, "{:?}", claimed.1);
+    // the calibration's fluid hash is not offered: refused, with the reason
+    assert_eq!(claimed.1["jobs"].as_array().map(Vec::len), Some(0), "{:?}", claimed.1);
+    let refused = claimed.1["refused"][0]["reason"].as_str().unwrap_or_default().to_string();
+    assert!(refused.contains("fluid table"), "{refused}");
+    let hashes = calibration_hashes(&s.url);
+    let claim = json!({"worker": "w", "slots": 2, "max_jobs": 2, "solver_version": env!("CARGO_PKG_VERSION"),
+                       "fluid_hashes": hashes});
+    let claimed = post("/jobs/claim", &claim);
+    let jobs = claimed.1["jobs"].as_array().cloned().unwrap_or_default();
+    assert_eq!(jobs.len(), 2, "{:?}", claimed.1);
+    let item = |j: &Value, cost: Value| json!({"job_id": j["id"], "lease_id": j["lease_id"], "outcome": {"status": "ok", "cost": cost}});
+    let bad = [
+        (json!({"results": []}), "results", "at least one"),
+        (
+            json!({"results": [item(&jobs[0], json!(1.0)), item(&jobs[1], json!(-1.0))]}),
+            "results[1].outcome.cost",
+            "finite",
+        ),
+        (json!({"results": [item(&jobs[0], json!(1.0)), item(&jobs[0], json!(1.0))]}), "results[1].job_id", "twice"),
+        (
+            json!({"results": [item(&jobs[0], json!(1.0)), item(&json!({"id": 999_999, "lease_id": "x"}), json!(1.0))]}),
+            "results[1].job_id",
+            "does not exist",
+        ),
+    ];
+    for (body, field, needle) in &bad {
+        assert_error(&post("/jobs/results", body), 422, Some(field), needle);
+    }
+    let id = c.1["id"].as_i64().unwrap();
+    let results = |id: i64| send("GET", &format!("{api}/calibrations/{id}/results"), None, None).1;
+    assert_eq!(results(id)["items"].as_array().map(Vec::len), Some(0), "a refused batch stored results");
+    let good = json!({"results": [item(&jobs[0], json!(1.5)), item(&jobs[1], json!(2.5))]});
+    let r = post("/jobs/results", &good);
+    assert_eq!(r.0, 200, "{:?}", r.1);
+    assert_eq!(r.1["results"], json!([{"status": "ok", "counted": true}, {"status": "ok", "counted": true}]));
+    let r = post("/jobs/results", &good);
+    assert_eq!(r.1["results"], json!([{"status": "stale", "counted": false}, {"status": "stale", "counted": false}]));
+    let cal = send("GET", &format!("{api}/calibrations/{id}"), None, None).1;
+    assert_eq!(cal["evaluations"], 2, "{cal}");
+    assert_eq!(results(id)["items"].as_array().map(Vec::len), Some(4));
+}
+
+/// The fluid hashes a calibration needs, as its record lists them.
+fn calibration_hashes(url: &str) -> Value {
+    let cal = send("GET", &format!("{url}/api/v1/calibrations/1"), None, None).1;
+    cal["fluid_hashes"].clone()
+}
+
 fn endpoints() -> Vec<(&'static str, &'static str)> {
     vec![
         ("POST", "/experiments"),
@@ -201,6 +266,7 @@ fn endpoints() -> Vec<(&'static str, &'static str)> {
         ("POST", "/jobs/claim"),
         ("POST", "/jobs/1/heartbeat"),
         ("POST", "/jobs/1/result"),
+        ("POST", "/jobs/results"),
     ]
 }
 
@@ -225,6 +291,8 @@ fn json_value() -> impl Strategy<Value = Value> {
                     Just("outcome".to_string()),
                     Just("worker".to_string()),
                     Just("slots".to_string()),
+                    Just("results".to_string()),
+                    Just("job_id".to_string()),
                     "[a-z]{1,6}"
                 ],
                 inner,
