@@ -25,6 +25,8 @@ pub mod config;
 pub mod cost;
 pub mod data;
 pub mod draws;
+#[cfg(feature = "serde")]
+mod exact;
 pub mod inference;
 pub mod model;
 pub mod optim;

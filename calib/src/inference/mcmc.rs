@@ -176,7 +176,7 @@ enum Phase {
 #[derive(Clone, Debug)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct EnsembleSampler {
-    #[cfg_attr(feature = "serde", serde(with = "crate::inference::exact::space"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::exact::space"))]
     space: Space,
     options: McmcOptions,
     walkers: usize,

@@ -34,7 +34,7 @@ use crate::api::{Best, Candidate, Evaluation, Optimizer, StopReason, TellError};
 mod common;
 pub mod compare;
 #[cfg(feature = "serde")]
-mod exact;
+use crate::exact;
 pub mod mcmc;
 pub mod nelder_mead;
 pub mod sensitivity;

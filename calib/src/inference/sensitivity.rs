@@ -257,7 +257,7 @@ struct PhysicalValue(#[cfg_attr(feature = "serde", serde(with = "crate::inferenc
 #[derive(Clone, Debug)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct Sensitivity {
-    #[cfg_attr(feature = "serde", serde(with = "crate::inference::exact::space"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::exact::space"))]
     space: Space,
     options: SensitivityOptions,
     #[cfg_attr(feature = "serde", serde(with = "crate::inference::exact"))]

@@ -355,7 +355,7 @@ enum Stage {
 #[derive(Clone, Debug)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub struct Variance {
-    #[cfg_attr(feature = "serde", serde(with = "crate::inference::exact::space"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::exact::space"))]
     space: Space,
     options: VarianceOptions,
     #[cfg_attr(feature = "serde", serde(with = "crate::inference::exact"))]

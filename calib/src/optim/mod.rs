@@ -33,7 +33,7 @@ mod cmaes;
 mod direct_search;
 mod engine;
 #[cfg(feature = "serde")]
-mod exact;
+use crate::exact;
 mod genetic;
 mod pattern;
 mod swarm;

@@ -1,4 +1,5 @@
-//! Serialisation of the floats of an algorithm's state that survives any format bit for bit.
+//! Serialisation of the floats of an algorithm's state that survives any format bit for bit
+//! (shared by `optim` and `inference`).
 //!
 //! A resumed run must continue exactly as the uninterrupted one. Plain `f64` fields do not
 //! guarantee that: JSON cannot hold `+∞` (the rank of a failed evaluation), and `serde_json` without
@@ -114,6 +115,42 @@ pub(crate) fn serialize<T: Exact, S: Serializer>(v: &T, s: S) -> Result<S::Ok, S
 pub(crate) fn deserialize<'de, T: Exact, D: Deserializer<'de>>(d: D) -> Result<T, D::Error> {
     let r = T::Repr::deserialize(d)?;
     T::from_repr(r).map_err(de::Error::custom)
+}
+
+/// A [`Space`](crate::space::Space) with its bounds written exactly: `#[serde(with = "exact::space")]`.
+pub(crate) mod space {
+    use super::*;
+    use crate::space::{FreeParameter, Scale, Space};
+
+    #[derive(Serialize, Deserialize)]
+    struct Param {
+        name: String,
+        #[serde(with = "super")]
+        lower: f64,
+        #[serde(with = "super")]
+        upper: f64,
+        scale: Scale,
+    }
+
+    pub(crate) fn serialize<S: Serializer>(space: &Space, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(space.params().iter().map(|p| Param {
+            name: p.name.clone(),
+            lower: p.lower,
+            upper: p.upper,
+            scale: p.scale,
+        }))
+    }
+
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Space, D::Error> {
+        let params = Vec::<Param>::deserialize(d)?;
+        Space::new(
+            params
+                .into_iter()
+                .map(|p| FreeParameter { name: p.name, lower: p.lower, upper: p.upper, scale: p.scale })
+                .collect(),
+        )
+        .map_err(de::Error::custom)
+    }
 }
 
 #[cfg(test)]
