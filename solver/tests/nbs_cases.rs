@@ -20,8 +20,9 @@ const P_OUTLET: f64 = 83087.0;
 struct Run {
     /// Case file stem in `examples/nbs/`; the data are `{stem}-data.csv`.
     stem: &'static str,
-    /// Drive (reservoir) pressure, Pa.
-    pressure_pa: f64,
+    /// Drive pressure of the report (gauge, over the outlet's atmosphere), Pa; the reservoir
+    /// holds this plus [`P_OUTLET`] absolute.
+    drive_pa: f64,
     /// Reservoir liquid temperature, K; `None` for saturated liquid at the drive pressure.
     subcooled_k: Option<f64>,
     /// Chilldown time the validation quotes for this run, s.
@@ -29,9 +30,9 @@ struct Run {
 }
 
 const RUNS: [Run; 3] = [
-    Run { stem: "saturated-2.5atm", pressure_pa: 253312.0, subcooled_k: None, chilldown_s: 245.0 },
-    Run { stem: "saturated-3.4atm", pressure_pa: 344505.0, subcooled_k: None, chilldown_s: 199.0 },
-    Run { stem: "subcooled-4.2atm", pressure_pa: 425565.0, subcooled_k: Some(76.0), chilldown_s: 127.0 },
+    Run { stem: "saturated-2.5atm", drive_pa: 253312.0, subcooled_k: None, chilldown_s: 245.0 },
+    Run { stem: "saturated-3.4atm", drive_pa: 344505.0, subcooled_k: None, chilldown_s: 199.0 },
+    Run { stem: "subcooled-4.2atm", drive_pa: 425565.0, subcooled_k: Some(76.0), chilldown_s: 127.0 },
 ];
 
 fn read(name: &str) -> String {
@@ -118,18 +119,19 @@ fn cases_parse_and_describe_the_nbs_line() {
 }
 
 #[test]
-fn reservoirs_are_at_the_drive_pressure_and_liquid_temperature() {
+fn reservoirs_hold_the_gauge_drive_pressure_and_liquid_temperature() {
     for run in &RUNS {
         let c = case(run);
         let s = run.stem;
         assert_eq!(c.inlet.kind, BoundaryKind::Reservoir, "{s}");
         let p = c.inlet.pressure_pa.as_ref().unwrap_or_else(|| panic!("{s}: inlet.pressure_pa"));
-        assert_eq!(p.at(0.0), run.pressure_pa, "{s}: reservoir pressure");
-        assert_eq!(p.at(1000.0), run.pressure_pa, "{s}: reservoir pressure is constant");
+        let reservoir = run.drive_pa + P_OUTLET;
+        assert_eq!(p.at(0.0), reservoir, "{s}: reservoir pressure = drive (gauge) + outlet");
+        assert_eq!(p.at(1000.0), reservoir, "{s}: reservoir pressure is constant");
         assert!(c.inlet.quality.is_none(), "{s}: liquid given by temperature, not quality");
         let t = c.inlet.temperature_k.as_ref().unwrap_or_else(|| panic!("{s}: inlet.temperature_k")).at(0.0);
-        let ts = t_sat(run.pressure_pa);
-        println!("{s}: T_sat({} Pa) = {ts:.4} K, reservoir temperature_k = {t} K", run.pressure_pa);
+        let ts = t_sat(reservoir);
+        println!("{s}: T_sat({reservoir} Pa) = {ts:.4} K, reservoir temperature_k = {t} K");
         match run.subcooled_k {
             Some(t_l) => {
                 assert_eq!(t, t_l, "{s}: subcooled reservoir temperature");
