@@ -34,7 +34,12 @@ fn small_case(dir: &Path) -> PathBuf {
     path
 }
 
-const TRUE_QMFBSC: f64 = 3.0;
+/// True values of the twin experiment: the dry-wall gas convection scale (the vapour's pre-cooling
+/// ahead of the front) and the wall mass-transfer scale (the front's speed), two effects the wall
+/// traces tell apart. (The film-boiling scale qmfbsc trades off against Gwsc or Tmfbsc along a
+/// valley of equal cost on this case: those twins fit to the noise level 8–17 % away from the
+/// truth.)
+const TRUE_HG0SC: f64 = 2.0;
 const TRUE_GWSC: f64 = 1.5;
 
 /// Writes data simulated at the true values with 1 K of noise on the wall temperatures.
@@ -44,7 +49,7 @@ fn twin_data(dir: &Path, case: &Path) -> PathBuf {
         "simulate",
         case.to_str().unwrap(),
         "--set",
-        &format!("qmfbsc={TRUE_QMFBSC}"),
+        &format!("hg0sc={TRUE_HG0SC}"),
         "--set",
         &format!("Gwsc={TRUE_GWSC}"),
         "--noise",
@@ -56,7 +61,7 @@ fn twin_data(dir: &Path, case: &Path) -> PathBuf {
     ]));
     let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
     let mut lines = probes.lines();
-    let mut data = format!("# twin data: simulated at qmfbsc = {TRUE_QMFBSC}, Gwsc = {TRUE_GWSC}, noise 1 K\n");
+    let mut data = format!("# twin data: simulated at hg0sc = {TRUE_HG0SC}, Gwsc = {TRUE_GWSC}, noise 1 K\n");
     data.push_str(lines.next().unwrap());
     data.push('\n');
     for l in lines.filter(|l| l.contains(",wall_temperature_k,")) {
@@ -75,7 +80,7 @@ seed = 2
 case = "case.toml"
 data = "data.csv"
 [[parameters]]
-name = "qmfbsc"
+name = "hg0sc"
 scale = "log"
 [[parameters]]
 name = "Gwsc"
@@ -92,7 +97,7 @@ step = 0.03
 restarts = 1
 "#;
 
-/// Twin experiment: CMA-ES recovers the film-boiling scale within 5 %; the reported 95 %
+/// Twin experiment: CMA-ES recovers both parameters within 5 %; the reported 95 %
 /// intervals (widened for the simulation's numerical noise) cover both true values; the outputs
 /// are complete and best.toml reproduces the best fit.
 #[test]
@@ -110,18 +115,17 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
 
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
-    let q = result["best_parameters"]["qmfbsc"].as_f64().unwrap();
-    let g = result["best_parameters"]["Gwsc"].as_f64().unwrap();
-    assert!((q / TRUE_QMFBSC - 1.0).abs() < 0.05, "qmfbsc {q}");
-    for (name, truth) in [("qmfbsc", TRUE_QMFBSC), ("Gwsc", TRUE_GWSC)] {
+    for (name, truth) in [("hg0sc", TRUE_HG0SC), ("Gwsc", TRUE_GWSC)] {
+        let best = result["best_parameters"][name].as_f64().unwrap();
+        assert!((best / truth - 1.0).abs() < 0.05, "{name}: best {best}, truth {truth}");
         let u = &result["uncertainty"]["parameters"][name];
         let (lo, hi) = (u["lower95"].as_f64().unwrap(), u["upper95"].as_f64().unwrap());
-        assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {g})");
+        assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {best})");
     }
     assert_eq!(result["evaluations"].as_u64().unwrap(), 140);
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
     assert_eq!(evaluations.lines().count(), 141);
-    assert!(evaluations.starts_with("id,stage,algorithm,status,cost,qmfbsc,Gwsc,reason"));
+    assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes
     let again = dir.join("again");
@@ -138,11 +142,9 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
 
     // prediction of an untested condition (a lower drive pressure) over the posterior
     let untested = dir.join("untested.toml");
-    std::fs::write(
-        &untested,
-        std::fs::read_to_string(&case).unwrap().replace("pressure_pa = 425565.0", "pressure_pa = 350000.0"),
-    )
-    .unwrap();
+    let calibrated = std::fs::read_to_string(&case).unwrap();
+    assert!(calibrated.contains("pressure_pa = 508652.0"), "the case's dewar pressure changed: update this test");
+    std::fs::write(&untested, calibrated.replace("pressure_pa = 508652.0", "pressure_pa = 430000.0")).unwrap();
     let pred = dir.join("pred");
     let stdout = ok(&cryofit(&[
         "predict",
