@@ -123,6 +123,33 @@ wait_evaluations() {
         sleep 0.5
     done
 }
+# waits (bounded) until at least $1 jobs are leased: a worker keeps at most twice its slots in
+# hand, so with W one-slot workers, 2W-1 leased jobs mean every worker holds at least one
+wait_leased() {
+    python3 - "$url/metrics" "$1" <<'PY' || fail "never saw $1 jobs leased at once within 60 s"
+import sys, time, urllib.request
+deadline = time.monotonic() + 60
+while time.monotonic() < deadline:
+    try:
+        text = urllib.request.urlopen(sys.argv[1], timeout=5).read().decode()
+        if any(l.startswith("cryofit_leased_jobs ") and float(l.split()[1]) >= int(sys.argv[2]) for l in text.splitlines()):
+            sys.exit(0)
+    except OSError:
+        pass
+    time.sleep(0.02)
+sys.exit(1)
+PY
+}
+# waits (bounded) until the expired-leases counter exceeds $1; prints it
+wait_expired() {
+    local limit=$(($(date +%s) + LEASE_S + 10)) n
+    while :; do
+        n=$(metric cryofit_expired_leases_total)
+        if [ "$n" -gt "$1" ]; then echo "$n"; return 0; fi
+        [ "$(date +%s)" -lt "$limit" ] || { echo "$n"; return 1; }
+        sleep 0.2
+    done
+}
 container_of() { # the container of service $1, number $2
     docker ps -a -q --filter "label=com.docker.compose.project=$project" \
         --filter "label=com.docker.compose.service=$1" --filter "label=com.docker.compose.container-number=$2"
@@ -156,12 +183,16 @@ CRYOFIT_WORKER_SLOTS=1
 CRYOFIT_IMAGE=cryofit:latest
 EOF
 log "docker compose up --scale worker=$WORKERS (project $project, coordinator on $url)"
-compose up -d --scale "worker=$WORKERS" --wait --wait-timeout 120 >"$work/up.log" 2>&1 \
-    || { cat "$work/up.log"; fail "docker compose up did not get healthy"; }
+# (not `up --wait`: Compose takes a service whose health check is disabled for one that failed)
+compose up -d --scale "worker=$WORKERS" >"$work/up.log" 2>&1 \
+    || { cat "$work/up.log"; fail "docker compose up failed"; }
 coordinator=$(container_of coordinator 1)
 [ -n "$coordinator" ] || fail "no coordinator container"
+wait_healthy "$coordinator"
 for k in $(seq 1 "$WORKERS"); do
-    [ -n "$(container_of worker "$k")" ] || fail "no container for worker $k"
+    c=$(container_of worker "$k")
+    [ -n "$c" ] || fail "no container for worker $k"
+    [ "$(docker inspect -f '{{.State.Running}}' "$c")" = true ] || fail "worker $k is not running"
 done
 network="${project}_default"
 
@@ -172,23 +203,27 @@ budget=$(field budget)
 log "submitted calibration $id (budget $budget evaluations)"
 
 # the disturbances ----------------------------------------------------------------------------
+# each disturbance waits until its victim holds leases, and checks that they expired
 phase="killing a worker"
 wait_evaluations $((budget * 15 / 100))
+expired_before=$(metric cryofit_expired_leases_total)
+wait_leased $((2 * WORKERS - 1))
 victim=$(container_of worker 1)
 docker kill "$victim" >/dev/null || fail "docker kill worker 1"
-log "killed worker 1 at $(field evaluations) evaluations"
+log "killed worker 1 at $(field evaluations) evaluations while it held leases"
+expired_kill=$(wait_expired "$expired_before") || fail "the killed worker's leases did not expire within $((LEASE_S + 10)) s"
 
 phase="cutting a worker off the network"
 wait_evaluations $((budget * 30 / 100))
+wait_leased $((2 * (WORKERS - 1) - 1))
 cut=$(container_of worker 2)
-held_before=$(metric cryofit_leased_jobs)
-expired_before=$(metric cryofit_expired_leases_total)
 docker network disconnect "$network" "$cut" || fail "docker network disconnect worker 2"
-log "cut worker 2 off at $(field evaluations) evaluations for $CUT_S s (lease $LEASE_S s)"
-sleep "$CUT_S"
+log "cut worker 2 off at $(field evaluations) evaluations for $CUT_S s (lease $LEASE_S s) while it held leases"
+cut_until=$(($(date +%s) + CUT_S))
+expired_cut=$(wait_expired "$expired_kill") || fail "the cut-off worker's leases did not expire within $((LEASE_S + 10)) s"
+while [ "$(date +%s)" -lt "$cut_until" ]; do sleep 0.5; done
 docker network connect "$network" "$cut" || fail "docker network connect worker 2"
-expired_cut=$(( $(metric cryofit_expired_leases_total) - expired_before ))
-log "reconnected worker 2 at $(field evaluations) evaluations; $expired_cut leases expired meanwhile"
+log "reconnected worker 2 at $(field evaluations) evaluations; $((expired_cut - expired_kill)) of its leases had expired"
 
 phase="restarting the coordinator"
 wait_evaluations $((budget * 55 / 100))
