@@ -22,9 +22,9 @@ pub struct HealthcheckArgs {
 
 /// Host, port and path of an `http://` URL.
 fn split_url(url: &str) -> Result<(String, u16, String)> {
-    let rest = url
-        .strip_prefix("http://")
-        .ok_or_else(|| anyhow!("--url {url}: give a plain http:// URL (check the coordinator itself, not a TLS proxy)"))?;
+    let rest = url.strip_prefix("http://").ok_or_else(|| {
+        anyhow!("--url {url}: give a plain http:// URL (check the coordinator itself, not a TLS proxy)")
+    })?;
     let (authority, path) = match rest.find('/') {
         Some(i) => (&rest[..i], &rest[i..]),
         None => (rest, "/healthz"),
@@ -71,14 +71,16 @@ pub fn run(args: &HealthcheckArgs) -> Result<()> {
             Err(e) => last = Some(format!("{a}: {e}")),
         }
     }
-    let mut stream = stream.ok_or_else(|| {
-        anyhow!("{}: cannot connect ({})", args.url, last.unwrap_or_else(|| "no address".into()))
-    })?;
+    let mut stream = stream
+        .ok_or_else(|| anyhow!("{}: cannot connect ({})", args.url, last.unwrap_or_else(|| "no address".into())))?;
     stream.set_read_timeout(Some(timeout))?;
     stream.set_write_timeout(Some(timeout))?;
     let host_header = if host.contains(':') { format!("[{host}]:{port}") } else { format!("{host}:{port}") };
-    write!(stream, "GET {path} HTTP/1.1\r\nHost: {host_header}\r\nAccept: application/json\r\nConnection: close\r\n\r\n")
-        .with_context(|| format!("{}: cannot send the request", args.url))?;
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: {host_header}\r\nAccept: application/json\r\nConnection: close\r\n\r\n"
+    )
+    .with_context(|| format!("{}: cannot send the request", args.url))?;
     let mut reply = Vec::new();
     stream
         .take(64 * 1024)
@@ -106,10 +108,7 @@ mod tests {
 
     #[test]
     fn urls_split_into_host_port_path() {
-        assert_eq!(
-            split_url("http://127.0.0.1:8700/healthz").unwrap(),
-            ("127.0.0.1".into(), 8700, "/healthz".into())
-        );
+        assert_eq!(split_url("http://127.0.0.1:8700/healthz").unwrap(), ("127.0.0.1".into(), 8700, "/healthz".into()));
         assert_eq!(split_url("http://coordinator").unwrap(), ("coordinator".into(), 80, "/healthz".into()));
         assert_eq!(split_url("http://[::1]:9/x").unwrap(), ("::1".into(), 9, "/x".into()));
         assert!(split_url("https://a/healthz").is_err());

@@ -148,12 +148,20 @@ fn kubernetes_manifests_are_consistent() {
         let spec = &d.value["spec"];
         let selector = labels(&spec["selector"]["matchLabels"]);
         let pod_labels = labels(&template["metadata"]["labels"]);
-        assert!(selects(&selector, &pod_labels), "{}: selector {selector:?} does not match the template's labels {pod_labels:?}", d.label());
+        assert!(
+            selects(&selector, &pod_labels),
+            "{}: selector {selector:?} does not match the template's labels {pod_labels:?}",
+            d.label()
+        );
         let pod = &template["spec"];
         let containers = pod["containers"].as_array().unwrap_or_else(|| panic!("{}: no containers", d.label()));
         assert!(!containers.is_empty(), "{}: no containers", d.label());
-        let mut volumes: BTreeSet<String> =
-            pod["volumes"].as_array().into_iter().flatten().filter_map(|v| v["name"].as_str().map(String::from)).collect();
+        let mut volumes: BTreeSet<String> = pod["volumes"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|v| v["name"].as_str().map(String::from))
+            .collect();
         if d.kind() == "StatefulSet" {
             let service = spec["serviceName"].as_str().unwrap_or_default();
             assert!(
@@ -164,7 +172,11 @@ fn kubernetes_manifests_are_consistent() {
             assert_eq!(spec["replicas"], 1, "{}: the coordinator's SQLite file allows one replica", d.label());
             for t in spec["volumeClaimTemplates"].as_array().into_iter().flatten() {
                 volumes.insert(t["metadata"]["name"].as_str().unwrap_or_default().to_string());
-                assert!(t["spec"]["resources"]["requests"]["storage"].is_string(), "{}: claim without a size", d.label());
+                assert!(
+                    t["spec"]["resources"]["requests"]["storage"].is_string(),
+                    "{}: claim without a size",
+                    d.label()
+                );
             }
         }
         for c in containers {
@@ -196,8 +208,13 @@ fn kubernetes_manifests_are_consistent() {
                     continue;
                 }
                 let (s, k) = (r["name"].as_str().unwrap_or_default(), r["key"].as_str().unwrap_or_default());
-                let keys = secrets.get(s).unwrap_or_else(|| panic!("{at}: env {} reads Secret `{s}`, not defined", e["name"]));
-                assert!(keys.contains(k), "{at}: env {} reads key `{k}` of Secret `{s}`, which has {keys:?}", e["name"]);
+                let keys =
+                    secrets.get(s).unwrap_or_else(|| panic!("{at}: env {} reads Secret `{s}`, not defined", e["name"]));
+                assert!(
+                    keys.contains(k),
+                    "{at}: env {} reads key `{k}` of Secret `{s}`, which has {keys:?}",
+                    e["name"]
+                );
             }
             let requests = &c["resources"]["requests"];
             assert!(requests["cpu"].is_string() && requests["memory"].is_string(), "{at}: no CPU and memory requests");
@@ -207,14 +224,17 @@ fn kubernetes_manifests_are_consistent() {
     // Services select a workload's pods and point at one of their ports
     for s in docs.iter().filter(|d| d.kind() == "Service") {
         let selector = labels(&s.value["spec"]["selector"]);
-        let targets: Vec<_> =
-            workloads(&docs).into_iter().filter(|(_, t)| selects(&selector, &labels(&t["metadata"]["labels"]))).collect();
+        let targets: Vec<_> = workloads(&docs)
+            .into_iter()
+            .filter(|(_, t)| selects(&selector, &labels(&t["metadata"]["labels"])))
+            .collect();
         assert!(!targets.is_empty(), "{}: selector {selector:?} selects no workload", s.label());
         for p in s.value["spec"]["ports"].as_array().into_iter().flatten() {
             assert!(port_in_range(&p["port"]), "{}: port {}", s.label(), p["port"]);
             let target = if p["targetPort"].is_null() { &p["port"] } else { &p["targetPort"] };
             for (w, t) in &targets {
-                let ok = t["spec"]["containers"].as_array().into_iter().flatten().any(|c| container_has_port(c, target));
+                let ok =
+                    t["spec"]["containers"].as_array().into_iter().flatten().any(|c| container_has_port(c, target));
                 assert!(ok, "{}: targetPort {target} is no container port of {}", s.label(), w.label());
             }
         }
@@ -230,7 +250,12 @@ fn kubernetes_manifests_are_consistent() {
     let url = arg_after(&args, "--coordinator").unwrap_or_else(|| panic!("{}: no --coordinator", worker.label()));
     assert_eq!(url, format!("http://{}:{service_port}", coord_service.name()), "{}: --coordinator", worker.label());
     let slots = arg_after(&args, "--slots").unwrap_or_else(|| panic!("{}: no --slots", worker.label()));
-    assert_eq!(Some(slots), wc["resources"]["requests"]["cpu"].as_str(), "{}: --slots should equal the CPU request", worker.label());
+    assert_eq!(
+        Some(slots),
+        wc["resources"]["requests"]["cpu"].as_str(),
+        "{}: --slots should equal the CPU request",
+        worker.label()
+    );
     let coord = docs.iter().find(|d| d.kind() == "StatefulSet").expect("the coordinator StatefulSet");
     let cc = &coord.value["spec"]["template"]["spec"]["containers"][0];
     assert_eq!(cc["args"][0], "serve", "{}: should run `cryofit serve`", coord.label());
@@ -250,10 +275,17 @@ fn kubernetes_manifests_are_consistent() {
     assert_eq!(target["name"].as_str(), Some(worker.name()), "{}: scaleTargetRef", so.label());
     assert!(target["kind"].is_null() || target["kind"] == "Deployment", "{}: scaleTargetRef kind", so.label());
     let triggers = so.value["spec"]["triggers"].as_array().cloned().unwrap_or_default();
-    let prom = triggers.iter().find(|t| t["type"] == "prometheus").unwrap_or_else(|| panic!("{}: no prometheus trigger", so.label()));
+    let prom = triggers
+        .iter()
+        .find(|t| t["type"] == "prometheus")
+        .unwrap_or_else(|| panic!("{}: no prometheus trigger", so.label()));
     let query = prom["metadata"]["query"].as_str().unwrap_or_default();
     assert!(query.contains("cryofit_queue_depth"), "{}: the query should use cryofit_queue_depth: {query}", so.label());
-    assert!(prom["metadata"]["serverAddress"].as_str().is_some_and(|a| a.starts_with("http")), "{}: serverAddress", so.label());
+    assert!(
+        prom["metadata"]["serverAddress"].as_str().is_some_and(|a| a.starts_with("http")),
+        "{}: serverAddress",
+        so.label()
+    );
     assert!(
         prom["metadata"]["threshold"].as_str().and_then(|t| t.parse::<f64>().ok()).is_some_and(|t| t > 0.0),
         "{}: threshold must be a positive number in a string",
@@ -261,7 +293,11 @@ fn kubernetes_manifests_are_consistent() {
     );
     let exposed = live_metric_names();
     for name in metric_names(query) {
-        assert!(exposed.contains(&name), "{}: the query uses `{name}`, which /metrics does not expose: {exposed:?}", so.label());
+        assert!(
+            exposed.contains(&name),
+            "{}: the query uses `{name}`, which /metrics does not expose: {exposed:?}",
+            so.label()
+        );
     }
 }
 
@@ -300,8 +336,14 @@ fn compose_file_wires_workers_to_a_healthy_coordinator() {
     let worker = &c["services"]["worker"];
     assert!(coord.is_object() && worker.is_object(), "compose.yaml: services coordinator and worker");
     let test = coord["healthcheck"]["test"].as_array().cloned().unwrap_or_default();
-    assert!(test.iter().any(|a| a == "healthcheck"), "coordinator healthcheck should run `cryofit healthcheck`: {test:?}");
-    assert_eq!(worker["depends_on"]["coordinator"]["condition"], "service_healthy", "workers wait for a healthy coordinator");
+    assert!(
+        test.iter().any(|a| a == "healthcheck"),
+        "coordinator healthcheck should run `cryofit healthcheck`: {test:?}"
+    );
+    assert_eq!(
+        worker["depends_on"]["coordinator"]["condition"], "service_healthy",
+        "workers wait for a healthy coordinator"
+    );
     assert_eq!(worker["healthcheck"]["disable"], true, "a worker serves no /healthz");
     // the volume holds the database
     let db = arg_after(coord["command"].as_array().map_or(&[][..], Vec::as_slice), "--database").expect("--database");
@@ -332,7 +374,9 @@ fn compose_file_wires_workers_to_a_healthy_coordinator() {
                 .expect("run docker compose config");
             assert!(out.status.success(), "docker compose config -q: {}", String::from_utf8_lossy(&out.stderr));
         }
-        _ => eprintln!("skipped `docker compose config -q`: docker compose (v2) is not installed (docker/setup.sh installs it)"),
+        _ => eprintln!(
+            "skipped `docker compose config -q`: docker compose (v2) is not installed (docker/setup.sh installs it)"
+        ),
     }
 }
 
@@ -422,10 +466,7 @@ fn slurm_worker_script_runs_a_calibration_and_exits_when_idle() {
     // no coordinator to be found: a clear error, not a hang
     let (status, log) = run_sbatch(
         &dir,
-        &[
-            ("CRYOFIT_STATE_DIR", dir.join("nowhere").display().to_string()),
-            ("CRYOFIT_WAIT_S", "0".into()),
-        ],
+        &[("CRYOFIT_STATE_DIR", dir.join("nowhere").display().to_string()), ("CRYOFIT_WAIT_S", "0".into())],
     );
     assert!(!status.success(), "should fail without a coordinator:\n{log}");
     assert!(log.contains("did not appear"), "{log}");
@@ -451,5 +492,9 @@ fn healthcheck_command_reports_a_coordinator() {
     let free = std::net::TcpListener::bind("127.0.0.1:0").expect("bind").local_addr().expect("addr");
     let closed = run(&format!("http://{free}/healthz"));
     assert!(!closed.status.success());
-    assert!(String::from_utf8_lossy(&closed.stderr).contains("cannot connect"), "{}", String::from_utf8_lossy(&closed.stderr));
+    assert!(
+        String::from_utf8_lossy(&closed.stderr).contains("cannot connect"),
+        "{}",
+        String::from_utf8_lossy(&closed.stderr)
+    );
 }
