@@ -245,7 +245,7 @@ done
 [ "$s" = completed ] || fail "the calibration ended $s: $(api "/api/v1/calibrations/$id")"
 expired_total=$((expired_total + $(metric cryofit_expired_leases_total)))
 stale_total=$((stale_total + $(metric cryofit_stale_results_total)))
-log "completed"
+log "completed; coordinator memory $(docker stats --no-stream --format '{{.MemUsage}}' "$coordinator" 2>/dev/null || echo unknown)"
 
 # the checks ----------------------------------------------------------------------------------
 phase="checking the history"
