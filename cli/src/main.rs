@@ -4,6 +4,7 @@ mod bench;
 mod calibrate;
 mod client;
 mod fluid_source;
+mod healthcheck;
 mod params_cmd;
 mod predict;
 mod props;
@@ -54,6 +55,8 @@ enum Command {
     Results(client::ResultsArgs),
     /// Cancel a calibration.
     Cancel(client::CancelArgs),
+    /// Exit 0 when a coordinator's /healthz answers ok (for container health checks).
+    Healthcheck(healthcheck::HealthcheckArgs),
 }
 
 fn main() -> ExitCode {
@@ -94,6 +97,7 @@ fn main() -> ExitCode {
         Command::Status(args) => client::status(&args),
         Command::Results(args) => client::results(&args),
         Command::Cancel(args) => client::cancel(&args),
+        Command::Healthcheck(args) => healthcheck::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
