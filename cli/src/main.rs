@@ -7,6 +7,7 @@ mod fluid_source;
 mod params_cmd;
 mod predict;
 mod props;
+mod report;
 mod serve;
 mod simulate;
 mod work;
@@ -54,6 +55,8 @@ enum Command {
     Results(client::ResultsArgs),
     /// Cancel a calibration.
     Cancel(client::CancelArgs),
+    /// Draw a calibration's figures (SVG and PNG) with an index.html, from an output folder or a coordinator.
+    Report(report::ReportArgs),
 }
 
 fn main() -> ExitCode {
@@ -94,6 +97,7 @@ fn main() -> ExitCode {
         Command::Status(args) => client::status(&args),
         Command::Results(args) => client::results(&args),
         Command::Cancel(args) => client::cancel(&args),
+        Command::Report(args) => report::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

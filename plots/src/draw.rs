@@ -606,12 +606,14 @@ fn fit(f: &FitPanels) -> Layout {
                 size: 3,
                 label: first.then(|| "measured".into()),
             });
-            p.layers.push(Layer::Line {
-                pts: model,
-                colour: MODEL_COLOUR,
-                width: 3,
-                label: first.then(|| "model, best parameters".into()),
-            });
+            if !model.is_empty() {
+                p.layers.push(Layer::Line {
+                    pts: model,
+                    colour: MODEL_COLOUR,
+                    width: 3,
+                    label: first.then(|| "model, best parameters".into()),
+                });
+            }
             p.legend = first.then_some(SeriesLabelPosition::UpperRight);
             Some(p)
         })
