@@ -74,7 +74,8 @@ impl Axis {
             // whole decades, so that at least two labelled ticks show
             let (a, b) = (lo.log10().floor(), hi.log10().ceil());
             let b = if b <= a { a + 1.0 } else { b };
-            return Self { lo: 10f64.powf(a), hi: 10f64.powf(b), log };
+            // (a hair outside, so that rounding in the log coordinate keeps the end labels)
+            return Self { lo: 10f64.powf(a) * (1.0 - 1e-9), hi: 10f64.powf(b) * (1.0 + 1e-9), log };
         }
         let span = hi - lo;
         let pad = if span > 0.0 { span * 0.05 } else { lo.abs().max(1.0) * 0.05 };
@@ -586,6 +587,18 @@ fn fit(f: &FitPanels) -> Layout {
             let model: Vec<(f64, f64)> = sp.model.iter().map(|&(t, v)| (t, v * k)).collect();
             let band: Option<Vec<(f64, f64, f64)>> =
                 sp.band.as_ref().map(|b| b.iter().map(|&(t, lo, hi)| (t, lo * k, hi * k)).collect());
+            // the measured window (and a fifth more), where there are data: the model often runs
+            // on long after the measurements end
+            let t_end = data.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+            let (model, band) = if t_end.is_finite() && t_end > 0.0 {
+                let limit = t_end * 1.2;
+                (
+                    model.into_iter().filter(|p| p.0 <= limit).collect::<Vec<_>>(),
+                    band.map(|b| b.into_iter().filter(|p| p.0 <= limit).collect::<Vec<_>>()),
+                )
+            } else {
+                (model, band)
+            };
             let times = data.iter().chain(&model).map(|p| p.0);
             let values = data.iter().chain(&model).map(|p| p.1).chain(band.iter().flatten().flat_map(|b| [b.1, b.2]));
             let x = Axis::over(times, false);

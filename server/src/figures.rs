@@ -176,7 +176,7 @@ impl<'a> Context<'a> {
     fn posterior(&self, seed: u64) -> Result<(Vec<String>, Vec<Vec<f64>>, &'static str), String> {
         let reports = self.reports.as_ref().map_err(Clone::clone)?;
         if let Some(r) = reports.iter().rev().find(|r| r.posterior_draws.as_ref().is_some_and(|d| !d.is_empty())) {
-            return Ok((r.free.clone(), r.posterior_draws.clone().unwrap_or_default(), "MCMC draws"));
+            return Ok((r.free.clone(), r.posterior_draws.clone().unwrap_or_default(), "MCMC"));
         }
         for r in reports.iter().rev() {
             if let Some(InferenceSummary::Variance(v)) = &r.details
