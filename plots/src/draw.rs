@@ -533,6 +533,9 @@ fn marginals(s: &Samples) -> Layout {
     Layout { title: s.title.clone(), rows, cols, panels }
 }
 
+/// Most markers in one scatter panel of a corner plot.
+const SCATTER_POINTS: usize = 400;
+
 fn corner(s: &Samples) -> Layout {
     let n = s.labels.len();
     let mut panels = Vec::with_capacity(n * n);
@@ -551,9 +554,13 @@ fn corner(s: &Samples) -> Layout {
                 continue;
             }
             let xs: Vec<f64> = s.draws.iter().filter_map(|d| d.get(c).copied()).collect();
-            let pts: Vec<(f64, f64)> = s.draws.iter().filter_map(|d| Some((*d.get(c)?, *d.get(r)?))).collect();
+            let ys: Vec<f64> = s.draws.iter().filter_map(|d| d.get(r).copied()).collect();
+            // at most SCATTER_POINTS markers, evenly spread over the draws
+            let step = s.draws.len().div_ceil(SCATTER_POINTS).max(1);
+            let pts: Vec<(f64, f64)> =
+                s.draws.iter().step_by(step).filter_map(|d| Some((*d.get(c)?, *d.get(r)?))).collect();
             let x = Axis::over(xs, false);
-            let y = Axis::over(pts.iter().map(|p| p.1), false);
+            let y = Axis::over(ys, false);
             let mut p = Panel::new("", s.labels[c].clone(), s.labels[r].clone(), x, y);
             p.font = 13.0;
             p.layers.push(Layer::Dots { pts, colour: colour(0), alpha: 0.3, size: 2, label: None });

@@ -39,7 +39,7 @@ pub const SESSION_COOKIE: &str = "cryofit_session";
 const REFRESH_S: u32 = 5;
 
 /// Posterior draws simulated for the bands of a finished calibration's page.
-const DASHBOARD_BAND_DRAWS: usize = 16;
+const DASHBOARD_BAND_DRAWS: usize = 8;
 
 /// Calibrations whose figures are kept.
 const CACHED_CALIBRATIONS: usize = 16;
@@ -474,7 +474,7 @@ async fn calibration_page(State(state): State<AppState>, Path(id): Path<i64>) ->
     if let Some(p) = &c.best_parameters {
         s.push_str("<h2>Best parameters</h2><table><tr><th>parameter</th><th>value</th><th>unit</th></tr>");
         for (k, v) in p {
-            let unit = cryofit_solver::params::spec(k).map_or("", |s| s.unit);
+            let unit = cryofit_solver::params::spec(k).map_or("", |s| if s.unit == "-" { "dimensionless" } else { s.unit });
             let _ = write!(s, "<tr><td>{}</td><td class=\"num\">{}</td><td>{}</td></tr>", esc(k), num(*v), esc(unit));
         }
         s.push_str("</table>");
