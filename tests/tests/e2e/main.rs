@@ -1,5 +1,6 @@
 //! End-to-end tests: the real `cryofit` binary as coordinator and workers on loopback ports.
 
 mod common;
+mod dashboard;
 mod input;
 mod service;
