@@ -51,7 +51,8 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     if args.out.exists() && !args.out.is_dir() {
         bail!("--out {}: exists and is not a directory", args.out.display());
     }
-    let rt = tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the async runtime")?;
+    let rt =
+        tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the async runtime")?;
     let local = Path::new(&args.source);
     let data = if local.exists() {
         if !local.is_dir() {
@@ -147,10 +148,9 @@ fn lock(dir: &Path) -> Result<Option<std::fs::File>> {
     let Ok(handle) = std::fs::File::open(dir) else { return Ok(None) };
     match handle.try_lock() {
         Ok(()) => Ok(Some(handle)),
-        Err(std::fs::TryLockError::WouldBlock) => bail!(
-            "{}: a cryofit calibrate is running into this folder; report it when it has finished",
-            dir.display()
-        ),
+        Err(std::fs::TryLockError::WouldBlock) => {
+            bail!("{}: a cryofit calibrate is running into this folder; report it when it has finished", dir.display())
+        }
         Err(std::fs::TryLockError::Error(_)) => Ok(None),
     }
 }

@@ -92,7 +92,7 @@ enum Layer {
     Line { pts: Vec<(f64, f64)>, colour: RGBColor, width: u32, label: Option<String> },
     Dots { pts: Vec<(f64, f64)>, colour: RGBColor, alpha: f64, size: u32, label: Option<String> },
     Band { pts: Vec<(f64, f64, f64)>, colour: RGBColor, label: Option<String> },
-    Rects { rects: Vec<(f64, f64, f64, f64)>, colour: RGBColor, label: Option<String> },
+    Rects { rects: Vec<Rect>, colour: RGBColor, label: Option<String> },
     Text { at: (f64, f64), text: String },
 }
 
@@ -469,8 +469,11 @@ fn sensitivity(s: &Sensitivity) -> Layout {
     Layout { title: s.title.clone(), rows: n.max(1), cols: 1, panels }
 }
 
-/// Histogram bars (x0, 0, x1, count density) of values over `bins` equal bins.
-fn histogram(values: &[f64], bins: usize) -> (Vec<(f64, f64, f64, f64)>, f64, f64) {
+/// A rectangle (x0, y0, x1, y1) in data coordinates.
+type Rect = (f64, f64, f64, f64);
+
+/// Histogram bars (x0, 0, x1, count) of values over `bins` equal bins, and the binned range.
+fn histogram(values: &[f64], bins: usize) -> (Vec<Rect>, f64, f64) {
     let finite = values.iter().copied().filter(|v| v.is_finite());
     let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
     let (lo, hi) = if !lo.is_finite() {

@@ -84,10 +84,11 @@ fn hex(s: &str) -> String {
 }
 
 fn unhex(s: &str) -> Option<String> {
-    if s.len() % 2 != 0 {
+    if !s.len().is_multiple_of(2) {
         return None;
     }
-    let bytes: Option<Vec<u8>> = (0..s.len()).step_by(2).map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok()).collect();
+    let bytes: Option<Vec<u8>> =
+        (0..s.len()).step_by(2).map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok()).collect();
     String::from_utf8(bytes?).ok()
 }
 
@@ -326,7 +327,9 @@ async fn home(State(state): State<AppState>, headers: HeaderMap) -> Response {
     let running = rows.iter().any(|r| r.status == "running" || r.status == "queued");
     let mut s = String::from("<h1>Calibrations</h1>");
     if rows.is_empty() {
-        s.push_str("<p>No calibration yet: submit one with <code>cryofit submit FILE.toml --coordinator URL</code>.</p>");
+        s.push_str(
+            "<p>No calibration yet: submit one with <code>cryofit submit FILE.toml --coordinator URL</code>.</p>",
+        );
     } else {
         s.push_str(
             "<table><tr><th>id</th><th>name</th><th>status</th><th>progress</th><th>stage</th><th>best cost</th>\
@@ -335,7 +338,11 @@ async fn home(State(state): State<AppState>, headers: HeaderMap) -> Response {
         for r in &rows {
             let stages = serde_json::from_str::<serde_json::Value>(&r.spec_json)
                 .ok()
-                .and_then(|v| v["stages"].as_array().map(|a| a.iter().map(|s| s["algorithm"].as_str().unwrap_or("?").to_string()).collect::<Vec<_>>()))
+                .and_then(|v| {
+                    v["stages"].as_array().map(|a| {
+                        a.iter().map(|s| s["algorithm"].as_str().unwrap_or("?").to_string()).collect::<Vec<_>>()
+                    })
+                })
                 .unwrap_or_default();
             let k = (r.stage.max(0) as usize).min(stages.len().saturating_sub(1));
             let stage = stages.get(k).map_or_else(String::new, |a| format!("{}/{} {a}", k + 1, stages.len()));
@@ -349,7 +356,11 @@ async fn home(State(state): State<AppState>, headers: HeaderMap) -> Response {
                 status = status_badge(&r.status),
                 ev = r.evaluations,
                 budget = r.budget.max(1),
-                failed = if r.failed_evaluations > 0 { format!(" ({} failed)", r.failed_evaluations) } else { String::new() },
+                failed = if r.failed_evaluations > 0 {
+                    format!(" ({} failed)", r.failed_evaluations)
+                } else {
+                    String::new()
+                },
                 stage = esc(&stage),
                 best = r.best_cost.map_or_else(|| "—".into(), num),
                 updated = esc(&utc(r.updated)),
@@ -453,7 +464,10 @@ async fn calibration_page(State(state): State<AppState>, Path(id): Path<i64>) ->
     for (k, alg) in stage_specs.iter().enumerate() {
         let r = reports.get(k);
         let field = |name: &str| r.map(|r| r[name].clone()).unwrap_or(serde_json::Value::Null);
-        let free: Vec<String> = field("free").as_array().map(|a| a.iter().filter_map(|v| v.as_str().map(str::to_string)).collect()).unwrap_or_default();
+        let free: Vec<String> = field("free")
+            .as_array()
+            .map(|a| a.iter().filter_map(|v| v.as_str().map(str::to_string)).collect())
+            .unwrap_or_default();
         let state_text = match r {
             None if (k as i64) == c.stage && !c.status.is_final() => "running".to_string(),
             None => "not started".to_string(),
@@ -474,7 +488,8 @@ async fn calibration_page(State(state): State<AppState>, Path(id): Path<i64>) ->
     if let Some(p) = &c.best_parameters {
         s.push_str("<h2>Best parameters</h2><table><tr><th>parameter</th><th>value</th><th>unit</th></tr>");
         for (k, v) in p {
-            let unit = cryofit_solver::params::spec(k).map_or("", |s| if s.unit == "-" { "dimensionless" } else { s.unit });
+            let unit =
+                cryofit_solver::params::spec(k).map_or("", |s| if s.unit == "-" { "dimensionless" } else { s.unit });
             let _ = write!(s, "<tr><td>{}</td><td class=\"num\">{}</td><td>{}</td></tr>", esc(k), num(*v), esc(unit));
         }
         s.push_str("</table>");
@@ -562,7 +577,9 @@ async fn parameter_sets_download(State(state): State<AppState>, Path(id): Path<i
         return db_error(&state, e);
     }
     match db::all_parameter_sets(pool, id).await {
-        Ok(items) => download(&format!("calibration-{id}-parameter-sets.csv"), csv_response(parameter_sets_csv(&items))),
+        Ok(items) => {
+            download(&format!("calibration-{id}-parameter-sets.csv"), csv_response(parameter_sets_csv(&items)))
+        }
         Err(e) => db_error(&state, e),
     }
 }
@@ -616,9 +633,13 @@ async fn experiments_page(State(state): State<AppState>) -> Response {
     Html(page("Experiments", &s, false, secured(&state))).into_response()
 }
 
+/// A figure's heading and its SVG, or why it could not be drawn.
+type DrawnSvg = (String, Result<String, String>);
+
 /// Figures of an experiment's measured data: one per quantity, a panel per station.
-fn data_figures(e: &api::Experiment) -> Result<Vec<(String, Result<String, String>)>, String> {
-    let data = cryofit_calib::data::Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
+fn data_figures(e: &api::Experiment) -> Result<Vec<DrawnSvg>, String> {
+    let data = cryofit_calib::data::Dataset::from_csv(&e.data, &format!("experiment {} data", e.id))
+        .map_err(|x| x.to_string())?;
     let mut quantities: Vec<&str> = data.series.keys().map(|(_, q)| q.as_str()).collect();
     quantities.dedup();
     quantities.sort_unstable();
@@ -725,13 +746,16 @@ const THROUGHPUT_WINDOW_S: i64 = 60;
 async fn workers_page(State(state): State<AppState>) -> Response {
     let pool = state.coordinator.db().reader();
     let now = db::now_ms();
-    let (workers, recent) = match (db::workers(pool).await, db::results_per_worker_since(pool, now - THROUGHPUT_WINDOW_S * 1000).await) {
-        (Ok(w), Ok(r)) => (w, r),
-        (Err(e), _) | (_, Err(e)) => return db_error(&state, e),
-    };
+    let (workers, recent) =
+        match (db::workers(pool).await, db::results_per_worker_since(pool, now - THROUGHPUT_WINDOW_S * 1000).await) {
+            (Ok(w), Ok(r)) => (w, r),
+            (Err(e), _) | (_, Err(e)) => return db_error(&state, e),
+        };
     let mut s = String::from("<h1>Workers</h1>");
     if workers.is_empty() {
-        s.push_str("<p>No worker has claimed a job yet: start one with <code>cryofit work --coordinator URL</code>.</p>");
+        s.push_str(
+            "<p>No worker has claimed a job yet: start one with <code>cryofit work --coordinator URL</code>.</p>",
+        );
     } else {
         let _ = write!(
             s,

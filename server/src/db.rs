@@ -893,9 +893,10 @@ pub struct WorkerRow {
 
 /// Every worker, most recently seen first.
 pub async fn workers(pool: &SqlitePool) -> Result<Vec<WorkerRow>, DbError> {
-    let rows = sqlx::query("SELECT name, slots, last_heartbeat, evaluations FROM workers ORDER BY last_heartbeat DESC, name")
-        .fetch_all(pool)
-        .await?;
+    let rows =
+        sqlx::query("SELECT name, slots, last_heartbeat, evaluations FROM workers ORDER BY last_heartbeat DESC, name")
+            .fetch_all(pool)
+            .await?;
     Ok(rows
         .into_iter()
         .map(|r| WorkerRow { name: r.get(0), slots: r.get(1), last_heartbeat: r.get(2), evaluations: r.get(3) })
@@ -920,7 +921,8 @@ pub async fn all_parameter_sets(
 ) -> Result<Vec<cryofit_api::ParameterSetItem>, DbError> {
     let mut all = Vec::new();
     loop {
-        let page = parameter_sets_page(pool, calibration_id, None, None, cryofit_api::MAX_PAGE, all.len() as i64).await?;
+        let page =
+            parameter_sets_page(pool, calibration_id, None, None, cryofit_api::MAX_PAGE, all.len() as i64).await?;
         let n = page.len();
         all.extend(page);
         if (n as i64) < cryofit_api::MAX_PAGE {

@@ -106,12 +106,19 @@ pub fn facts(c: &api::Calibration) -> Vec<String> {
 }
 
 fn plots_tick(v: f64) -> String {
-    if v != 0.0 && !(1e-3..1e5).contains(&v.abs()) { format!("{v:.4e}") } else { format!("{}", (v * 1e4).round() / 1e4) }
+    if v != 0.0 && !(1e-3..1e5).contains(&v.abs()) {
+        format!("{v:.4e}")
+    } else {
+        format!("{}", (v * 1e4).round() / 1e4)
+    }
 }
 
 fn skipped(name: &str, title: &str, why: impl Into<String>) -> Figure {
     Figure { name: name.into(), title: title.into(), plot: Err(why.into()) }
 }
+
+/// Posterior draws: (parameter names, draws, what they are), or why there are none.
+type Posterior = Result<(Vec<String>, Vec<Vec<f64>>, &'static str), String>;
 
 /// A calibration's decoded parts.
 struct Context<'a> {
@@ -173,7 +180,7 @@ impl<'a> Context<'a> {
     }
 
     /// Posterior draws of the free parameters: (names, draws, what they are), or why there are none.
-    fn posterior(&self, seed: u64) -> Result<(Vec<String>, Vec<Vec<f64>>, &'static str), String> {
+    fn posterior(&self, seed: u64) -> Posterior {
         let reports = self.reports.as_ref().map_err(Clone::clone)?;
         if let Some(r) = reports.iter().rev().find(|r| r.posterior_draws.as_ref().is_some_and(|d| !d.is_empty())) {
             return Ok((r.free.clone(), r.posterior_draws.clone().unwrap_or_default(), "MCMC"));
@@ -211,7 +218,8 @@ impl<'a> Context<'a> {
             .map(|e| {
                 let case_label = format!("experiment {} case", e.id);
                 let case = Case::from_toml(&e.case, &case_label).map_err(|x| x.to_string())?;
-                let data = Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
+                let data =
+                    Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
                 let (table, _) = fluids(&case.fluid.name).map_err(|m| format!("{case_label}: {m}"))?;
                 let model = SolverModel::new(case.clone(), table, &fixed)
                     .map_err(|m| format!("{case_label}: {m}"))?
@@ -329,18 +337,17 @@ fn sensitivity(ctx: &Context<'_>) -> Figure {
         panels.push(plots::RankingPanel { label: format!("stage {}: {}", r.index + 1, r.algorithm.as_str()), bars });
     }
     if panels.is_empty() {
-        let why = if ctx.stages.iter().any(|s| matches!(s.algorithm, AlgorithmName::Sensitivity | AlgorithmName::Morris)) {
-            "the screening stage has not finished yet"
-        } else {
-            "the calibration has no sensitivity or Morris stage"
-        };
+        let why =
+            if ctx.stages.iter().any(|s| matches!(s.algorithm, AlgorithmName::Sensitivity | AlgorithmName::Morris)) {
+                "the screening stage has not finished yet"
+            } else {
+                "the calibration has no sensitivity or Morris stage"
+            };
         return skipped(name, title, why);
     }
     let plot = Plot::Sensitivity(plots::Sensitivity { title: ctx.title(title), score_label, panels });
     Figure { name: name.into(), title: title.into(), plot: Ok(plot) }
 }
-
-type Posterior = Result<(Vec<String>, Vec<Vec<f64>>, &'static str), String>;
 
 fn posterior_figures(ctx: &Context<'_>, posterior: &Posterior) -> (Figure, Figure) {
     let (mn, mt) = ("posterior-marginals", "Posterior marginals");
@@ -383,7 +390,8 @@ fn quantity_display(q: &str) -> (String, f64, String) {
 
 /// A file-name-safe form of an experiment name.
 fn slug(s: &str) -> String {
-    let v: String = s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect();
+    let v: String =
+        s.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '-' }).collect();
     if v.is_empty() { "experiment".into() } else { v }
 }
 
@@ -394,7 +402,11 @@ fn run_many(model: &SolverModel, sets: &[BTreeMap<String, f64>], threads: usize)
     std::thread::scope(|s| {
         let handles: Vec<_> = sets
             .chunks(chunk)
-            .map(|part| s.spawn(move || part.iter().filter_map(|p| model.run(p).ok()).map(|o| probes_dataset(&o.probes)).collect::<Vec<_>>()))
+            .map(|part| {
+                s.spawn(move || {
+                    part.iter().filter_map(|p| model.run(p).ok()).map(|o| probes_dataset(&o.probes)).collect::<Vec<_>>()
+                })
+            })
             .collect();
         handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
     })
@@ -511,7 +523,9 @@ fn fit_figures(
                     Some(plots::StationPanel {
                         station: st.name.clone(),
                         x_m: Some(st.x_m),
-                        data: data.map(|s| s.times.iter().copied().zip(s.values.iter().copied()).collect()).unwrap_or_default(),
+                        data: data
+                            .map(|s| s.times.iter().copied().zip(s.values.iter().copied()).collect())
+                            .unwrap_or_default(),
                         model: m.times.iter().copied().zip(m.values.iter().copied()).collect(),
                         band,
                     })
@@ -588,5 +602,9 @@ fn boiling_figure(
         plots_tick(d * 1e3),
         correlations.name()
     );
-    Figure { name: name.into(), title: title.into(), plot: Ok(Plot::Boiling(plots::BoilingCurves { title: full, panels })) }
+    Figure {
+        name: name.into(),
+        title: title.into(),
+        plot: Ok(Plot::Boiling(plots::BoilingCurves { title: full, panels })),
+    }
 }

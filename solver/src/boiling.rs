@@ -130,7 +130,8 @@ mod tests {
         // the maximum is the critical heat flux at T_chf, the curve dips to q_mfb at T_mfb
         let max = b.points.iter().map(|p| p.q_w_m2).fold(0.0, f64::max);
         assert!((max - a.q_chf).abs() <= 0.02 * a.q_chf, "max {max} vs q_chf {}", a.q_chf);
-        let near_mfb = b.points.iter().min_by(|x, y| (x.t_w - a.t_mfb).abs().total_cmp(&(y.t_w - a.t_mfb).abs())).unwrap();
+        let near_mfb =
+            b.points.iter().min_by(|x, y| (x.t_w - a.t_mfb).abs().total_cmp(&(y.t_w - a.t_mfb).abs())).unwrap();
         assert!(near_mfb.q_w_m2 < a.q_chf);
         assert!(b.points.iter().all(|p| p.q_w_m2.is_finite()));
     }

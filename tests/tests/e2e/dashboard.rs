@@ -193,7 +193,9 @@ fn with_tokens_every_data_page_needs_the_sign_in_cookie() {
     let (status, _, location, home) = get(&format!("{url}/"), None);
     assert_eq!((status, location), (200, None), "{home}");
     assert!(home.contains("<form method=\"post\" action=\"/signin\"") && !home.contains("Calibrations</h1>"), "{home}");
-    for page in ["/calibrations/1", "/experiments", "/experiments/1/data.csv", "/workers", "/calibrations/1/results.csv"] {
+    for page in
+        ["/calibrations/1", "/experiments", "/experiments/1/data.csv", "/workers", "/calibrations/1/results.csv"]
+    {
         let (status, _, location, body) = get(&format!("{url}{page}"), None);
         assert_eq!((status, location), (401, None), "{page}: {body}");
         assert!(body.contains("action=\"/signin\"") && body.contains(&format!("value=\"{page}\"")), "{page}: {body}");
@@ -224,7 +226,8 @@ fn with_tokens_every_data_page_needs_the_sign_in_cookie() {
     assert_eq!(status, 200);
     assert!(body.contains("<h1>Calibrations</h1>"), "{body}");
     // a forged cookie and the worker token's cookie are refused; the API still wants its bearer token
-    let worker_cookie = format!("cryofit_session={}", "worker-s3cret".bytes().map(|b| format!("{b:02x}")).collect::<String>());
+    let worker_cookie =
+        format!("cryofit_session={}", "worker-s3cret".bytes().map(|b| format!("{b:02x}")).collect::<String>());
     for c in ["cryofit_session=00ff", worker_cookie.as_str()] {
         let (status, _, _, _) = get(&format!("{url}/workers"), Some(c));
         assert_eq!(status, 401, "{c}");
