@@ -506,11 +506,17 @@ fn marginal_panel(s: &Samples, i: usize, small: bool) -> Panel {
     let (rects, lo, hi) = histogram(&values, bins_for(values.len()));
     let top = rects.iter().map(|r| r.3).fold(1.0f64, f64::max);
     let label = s.labels.get(i).cloned().unwrap_or_default();
+    // the best point may lie outside the draws: widen the axis to show it
+    let best = s.best.as_ref().and_then(|b| b.get(i)).copied().filter(|b| b.is_finite());
+    let x = match best {
+        Some(b) if b < lo || b > hi => Axis::over([lo, hi, b], false),
+        _ => Axis::fixed(lo, hi),
+    };
     let mut p = Panel::new(
         if small { String::new() } else { label.clone() },
         label,
         "draws per bin",
-        Axis::fixed(lo, hi),
+        x,
         Axis::fixed(0.0, top * 1.12),
     );
     p.layers.push(Layer::Rects {
@@ -562,8 +568,9 @@ fn corner(s: &Samples) -> Layout {
             let step = s.draws.len().div_ceil(SCATTER_POINTS).max(1);
             let pts: Vec<(f64, f64)> =
                 s.draws.iter().step_by(step).filter_map(|d| Some((*d.get(c)?, *d.get(r)?))).collect();
-            let x = Axis::over(xs, false);
-            let y = Axis::over(ys, false);
+            let best = |k: usize| s.best.as_ref().and_then(|b| b.get(k)).copied();
+            let x = Axis::over(xs.into_iter().chain(best(c)), false);
+            let y = Axis::over(ys.into_iter().chain(best(r)), false);
             let mut p = Panel::new("", s.labels[c].clone(), s.labels[r].clone(), x, y);
             p.font = 13.0;
             p.layers.push(Layer::Dots { pts, colour: colour(0), alpha: 0.3, size: 2, label: None });
