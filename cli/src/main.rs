@@ -8,6 +8,7 @@ mod healthcheck;
 mod params_cmd;
 mod predict;
 mod props;
+mod report;
 mod serve;
 mod simulate;
 mod work;
@@ -57,6 +58,8 @@ enum Command {
     Cancel(client::CancelArgs),
     /// Exit 0 when a coordinator's /healthz answers ok (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
+    /// Draw a calibration's figures (SVG and PNG) with an index.html, from an output folder or a coordinator.
+    Report(report::ReportArgs),
 }
 
 fn main() -> ExitCode {
@@ -98,6 +101,7 @@ fn main() -> ExitCode {
         Command::Results(args) => client::results(&args),
         Command::Cancel(args) => client::cancel(&args),
         Command::Healthcheck(args) => healthcheck::run(&args),
+        Command::Report(args) => report::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

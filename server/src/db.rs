@@ -876,6 +876,75 @@ pub async fn results_page(
 }
 
 // ---------------------------------------------------------------------------------------------
+// dashboard
+
+/// A worker as the coordinator last saw it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkerRow {
+    /// Its name.
+    pub name: String,
+    /// Simulation slots it claimed with.
+    pub slots: i64,
+    /// Last claim, heartbeat or result, Unix ms.
+    pub last_heartbeat: i64,
+    /// Results it reported.
+    pub evaluations: i64,
+}
+
+/// Every worker, most recently seen first.
+pub async fn workers(pool: &SqlitePool) -> Result<Vec<WorkerRow>, DbError> {
+    let rows =
+        sqlx::query("SELECT name, slots, last_heartbeat, evaluations FROM workers ORDER BY last_heartbeat DESC, name")
+            .fetch_all(pool)
+            .await?;
+    Ok(rows
+        .into_iter()
+        .map(|r| WorkerRow { name: r.get(0), slots: r.get(1), last_heartbeat: r.get(2), evaluations: r.get(3) })
+        .collect())
+}
+
+/// Results recorded since `since_ms`, per worker name.
+pub async fn results_per_worker_since(pool: &SqlitePool, since_ms: i64) -> Result<BTreeMap<String, i64>, DbError> {
+    let rows = sqlx::query(
+        "SELECT worker, COUNT(*) FROM cost_results WHERE created >= ? AND worker IS NOT NULL GROUP BY worker",
+    )
+    .bind(since_ms)
+    .fetch_all(pool)
+    .await?;
+    Ok(rows.into_iter().map(|r| (r.get(0), r.get(1))).collect())
+}
+
+/// Every parameter set of a calibration, in the order they were asked (page by page).
+pub async fn all_parameter_sets(
+    pool: &SqlitePool,
+    calibration_id: i64,
+) -> Result<Vec<cryofit_api::ParameterSetItem>, DbError> {
+    let mut all = Vec::new();
+    loop {
+        let page =
+            parameter_sets_page(pool, calibration_id, None, None, cryofit_api::MAX_PAGE, all.len() as i64).await?;
+        let n = page.len();
+        all.extend(page);
+        if (n as i64) < cryofit_api::MAX_PAGE {
+            return Ok(all);
+        }
+    }
+}
+
+/// Every result of a calibration, in the order they arrived (page by page).
+pub async fn all_results(pool: &SqlitePool, calibration_id: i64) -> Result<Vec<cryofit_api::ResultItem>, DbError> {
+    let mut all = Vec::new();
+    loop {
+        let page = results_page(pool, calibration_id, None, None, cryofit_api::MAX_PAGE, all.len() as i64).await?;
+        let n = page.len();
+        all.extend(page);
+        if (n as i64) < cryofit_api::MAX_PAGE {
+            return Ok(all);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // metrics
 
 /// Job counts by status.

@@ -1,5 +1,6 @@
 //! The cryofit coordinator: REST routes (axum), SQLite storage (sqlx), the optimiser driver and
-//! job leases (DESIGN.md §3.4–3.5).
+//! job leases (DESIGN.md §3.4–3.5), and the dashboard ([`dashboard`]) with a calibration's figures
+//! ([`figures`]).
 //!
 //! [`launch`] serves on a bound listener until a shutdown future resolves, so tests bind
 //! `127.0.0.1:0`; [`start_embedded`] runs a coordinator on a loopback port in the background of
@@ -8,7 +9,9 @@
 #![warn(missing_docs)]
 
 pub mod coordinator;
+pub mod dashboard;
 pub mod db;
+pub mod figures;
 pub mod metrics;
 mod openapi;
 mod routes;
@@ -168,6 +171,7 @@ pub struct AppState {
     coordinator: Arc<Coordinator>,
     settings: Arc<Settings>,
     metrics: Arc<metrics::Metrics>,
+    figures: Arc<dashboard::FigureCache>,
 }
 
 /// Opens the database, resumes running calibrations and builds the state of the routes.
@@ -175,7 +179,7 @@ pub async fn build_state(settings: Settings) -> Result<AppState, ServerError> {
     let db = db::Db::open(&settings.database_url).await?;
     let metrics = Arc::new(metrics::Metrics::default());
     let coordinator = Arc::new(Coordinator::load(db, settings.coordinator.clone(), metrics.clone()).await?);
-    Ok(AppState { coordinator, settings: Arc::new(settings), metrics })
+    Ok(AppState { coordinator, settings: Arc::new(settings), metrics, figures: Arc::default() })
 }
 
 /// Serves the coordinator on `listener` until `shutdown` resolves, with the reaper running.

@@ -9,7 +9,7 @@ use axum::body::Body;
 use axum::extract::{FromRequest, FromRequestParts, MatchedPath, Request, State};
 use axum::http::{HeaderMap, Method, StatusCode, header, request::Parts};
 use axum::middleware::{self, Next};
-use axum::response::{Html, IntoResponse, Response};
+use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use cryofit_api as api;
@@ -36,6 +36,11 @@ pub struct ApiError {
 impl ApiError {
     fn new(status: StatusCode, code: &'static str, message: impl Into<String>) -> Self {
         Self { status, code, message: message.into(), field: None }
+    }
+
+    /// The status and message (the dashboard shows them as a page).
+    pub(crate) fn parts(&self) -> (StatusCode, &str) {
+        (self.status, &self.message)
     }
 
     fn field(mut self, field: impl Into<String>) -> Self {
@@ -254,7 +259,8 @@ async fn auth(State(state): State<AppState>, req: Request, next: Next) -> Respon
 // ---------------------------------------------------------------------------------------------
 // router
 
-/// The full router: `/healthz`, `/metrics`, `/` and everything under `/api/v1`.
+/// The full router: `/healthz`, `/metrics`, the dashboard (`/` and its pages) and everything under
+/// `/api/v1`.
 pub fn router(state: AppState) -> Router {
     let v1 = Router::new()
         .route("/experiments", post(create_experiment).get(list_experiments))
@@ -271,10 +277,10 @@ pub fn router(state: AppState) -> Router {
         .route("/openapi.json", get(openapi))
         .layer(middleware::from_fn_with_state(state.clone(), auth));
     Router::new()
-        .route("/", get(dashboard))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .nest("/api/v1", v1)
+        .merge(crate::dashboard::router(state.clone()))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(TraceLayer::new_for_http().make_span_with(|req: &Request<Body>| {
@@ -294,25 +300,6 @@ async fn method_not_allowed(req: Request) -> ApiError {
         "method_not_allowed",
         format!("{} is not allowed on {}", req.method(), req.uri().path()),
     )
-}
-
-async fn dashboard(State(state): State<AppState>) -> Html<String> {
-    let secured = state.settings.client_token.is_some();
-    let mut s = String::from(
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>cryofit coordinator</title></head><body>\
-         <h1>cryofit coordinator</h1>",
-    );
-    if secured {
-        s.push_str(
-            "<form onsubmit=\"sessionStorage.token=this.token.value;return false\"><label>Client token \
-             <input name=\"token\" type=\"password\"></label><button>Sign in</button></form>",
-        );
-    }
-    s.push_str(
-        "<p>REST API under <code>/api/v1</code>; contract at <a href=\"/api/v1/openapi.json\">/api/v1/openapi.json</a>; \
-         <a href=\"/metrics\">metrics</a>.</p></body></html>",
-    );
-    Html(s)
 }
 
 #[utoipa::path(get, path = "/healthz", responses((status = 200, body = api::Health)))]
@@ -428,7 +415,7 @@ pub(crate) async fn create_calibration(
     Ok((StatusCode::CREATED, Json(api::Created { id })))
 }
 
-fn calibration_view(r: db::CalibrationRow) -> ApiResult<api::Calibration> {
+pub(crate) fn calibration_view(r: db::CalibrationRow) -> ApiResult<api::Calibration> {
     let corrupt =
         |what: &str, e: serde_json::Error| ApiError::from(DbError::Corrupt(format!("calibration {what}: {e}")));
     let status = api::CalibrationStatus::parse(&r.status)
@@ -489,7 +476,7 @@ fn wants_csv(headers: &HeaderMap) -> bool {
     headers.get(header::ACCEPT).and_then(|v| v.to_str().ok()).is_some_and(|v| v.contains("text/csv"))
 }
 
-fn csv_field(s: &str) -> String {
+pub(crate) fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 
@@ -497,7 +484,60 @@ fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
     v.map_or_else(String::new, |x| x.to_string())
 }
 
-fn csv_response(text: String) -> Response {
+/// Parameter sets as CSV: `id,job,stage,status,cost,reason` and a column per parameter.
+pub(crate) fn parameter_sets_csv(items: &[api::ParameterSetItem]) -> String {
+    let names: Vec<String> = items
+        .iter()
+        .flat_map(|i| i.parameters.keys().cloned())
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let mut s = String::from("id,job,stage,status,cost,reason");
+    for n in &names {
+        let _ = write!(s, ",{}", csv_field(n));
+    }
+    s.push('\n');
+    for i in items {
+        let _ = write!(
+            s,
+            "{},{},{},{},{},{}",
+            i.id,
+            i.job,
+            i.stage,
+            i.status,
+            opt(i.cost),
+            csv_field(i.reason.as_deref().unwrap_or(""))
+        );
+        for n in &names {
+            let _ = write!(s, ",{}", opt(i.parameters.get(n)));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Results as CSV.
+pub(crate) fn results_csv(items: &[api::ResultItem]) -> String {
+    let mut s = String::from("id,parameter_set_id,job_id,experiment_id,status,cost,reason,worker,duration_s\n");
+    for i in items {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{}",
+            i.id,
+            i.parameter_set_id,
+            i.job_id,
+            i.experiment_id,
+            i.status,
+            opt(i.cost),
+            csv_field(i.reason.as_deref().unwrap_or("")),
+            csv_field(i.worker.as_deref().unwrap_or("")),
+            opt(i.duration_s)
+        );
+    }
+    s
+}
+
+pub(crate) fn csv_response(text: String) -> Response {
     ([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], text).into_response()
 }
 
@@ -515,34 +555,7 @@ pub(crate) async fn parameter_sets(
     db::calibration(pool, id).await?;
     let items = db::parameter_sets_page(pool, id, q.status.as_deref(), q.stage, limit, offset).await?;
     if wants_csv(&headers) {
-        let names: Vec<String> = items
-            .iter()
-            .flat_map(|i| i.parameters.keys().cloned())
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
-            .collect();
-        let mut s = String::from("id,job,stage,status,cost,reason");
-        for n in &names {
-            let _ = write!(s, ",{}", csv_field(n));
-        }
-        s.push('\n');
-        for i in &items {
-            let _ = write!(
-                s,
-                "{},{},{},{},{},{}",
-                i.id,
-                i.job,
-                i.stage,
-                i.status,
-                opt(i.cost),
-                csv_field(i.reason.as_deref().unwrap_or(""))
-            );
-            for n in &names {
-                let _ = write!(s, ",{}", opt(i.parameters.get(n)));
-            }
-            s.push('\n');
-        }
-        return Ok(csv_response(s));
+        return Ok(csv_response(parameter_sets_csv(&items)));
     }
     Ok(Json(page(items, limit, offset)).into_response())
 }
@@ -561,23 +574,7 @@ pub(crate) async fn results(
     db::calibration(pool, id).await?;
     let items = db::results_page(pool, id, q.status.as_deref(), q.experiment_id, limit, offset).await?;
     if wants_csv(&headers) {
-        let mut s = String::from("id,parameter_set_id,job_id,experiment_id,status,cost,reason,worker,duration_s\n");
-        for i in &items {
-            let _ = writeln!(
-                s,
-                "{},{},{},{},{},{},{},{},{}",
-                i.id,
-                i.parameter_set_id,
-                i.job_id,
-                i.experiment_id,
-                i.status,
-                opt(i.cost),
-                csv_field(i.reason.as_deref().unwrap_or("")),
-                csv_field(i.worker.as_deref().unwrap_or("")),
-                opt(i.duration_s)
-            );
-        }
-        return Ok(csv_response(s));
+        return Ok(csv_response(results_csv(&items)));
     }
     Ok(Json(page(items, limit, offset)).into_response())
 }

@@ -6,6 +6,7 @@
 //! time), and nothing here knows about files, HTTP, SQL or async runtimes.
 #![warn(missing_docs)]
 
+pub mod boiling;
 pub mod case;
 pub mod closures;
 pub mod cryo;

@@ -2,5 +2,6 @@
 
 mod common;
 mod deploy;
+mod dashboard;
 mod input;
 mod service;

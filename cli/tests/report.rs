@@ -1,0 +1,137 @@
+//! `cryofit report` on calibration output folders: every figure of a calibration with all kinds
+//! of stages, notes for the figures a shorter calibration cannot have, and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cryofit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(args)
+        .env_remove("CRYOFIT_DATA_DIR")
+        .env_remove("CRYOFIT_COORDINATOR")
+        .output()
+        .unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cryofit-report-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The tiny case of the `tests` crate (NBS subcooled, 5 cells, 8 s) calibrated with `stages`.
+fn calibrate(dir: &Path, stages: &str) -> PathBuf {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures");
+    for name in ["tiny.toml", "tiny-data.csv"] {
+        std::fs::copy(fixtures.join(name), dir.join(name)).unwrap();
+    }
+    let text = std::fs::read_to_string(fixtures.join("tiny-calibration.toml")).unwrap();
+    let head = &text[..text.find("[[stages]]").unwrap()];
+    let file = dir.join("cal.toml");
+    std::fs::write(&file, format!("{head}{stages}")).unwrap();
+    let out = dir.join("out");
+    ok(&cryofit(&["calibrate", &file.display().to_string(), "--workers", "2", "--out", &out.display().to_string()]));
+    out
+}
+
+const ALL_STAGES: &str = r#"
+[[stages]]
+algorithm = "sensitivity"
+budget = 5
+
+[[stages]]
+algorithm = "cmaes"
+budget = 12
+population = 6
+
+[[stages]]
+algorithm = "variance"
+budget = 24
+step = 0.05
+restarts = 1
+
+[[stages]]
+algorithm = "mcmc"
+budget = 48
+walkers = 8
+"#;
+
+#[test]
+fn every_figure_of_a_calibration_with_every_kind_of_stage() {
+    let dir = scratch("all");
+    let out = calibrate(&dir, ALL_STAGES);
+    let report = dir.join("report");
+    let text = ok(&cryofit(&[
+        "report",
+        &out.display().to_string(),
+        "--out",
+        &report.display().to_string(),
+        "--band-draws",
+        "6",
+    ]));
+    assert!(text.contains("7 figures"), "{text}");
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    for name in [
+        "cost-history",
+        "parameter-traces",
+        "sensitivity",
+        "posterior-marginals",
+        "posterior-corner",
+        "fit-tiny-wall-temperature",
+        "boiling-curve",
+    ] {
+        let svg = std::fs::read_to_string(report.join(format!("{name}.svg"))).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"), "{name}");
+        let png = std::fs::read(report.join(format!("{name}.png"))).unwrap();
+        assert_eq!(&png[..4], b"\x89PNG", "{name}");
+        assert!(index.contains(&format!("<img src=\"{name}.svg\"")), "{name} not in the index");
+    }
+    assert!(!index.contains("Not drawn"), "{index}");
+    let fit = std::fs::read_to_string(report.join("fit-tiny-wall-temperature.svg")).unwrap();
+    for station in ["TS1", "TS2", "TS3", "TS4"] {
+        assert!(fit.contains(&format!("station {station}")), "{station}");
+    }
+    assert!(fit.contains("posterior predictive"), "the band is missing");
+    let boiling = std::fs::read_to_string(report.join("boiling-curve.svg")).unwrap();
+    assert!(boiling.contains("p = 7 atm") && boiling.contains("wall heat flux (W/m²)"));
+    // nothing left behind but the files
+    let leftovers: Vec<_> = std::fs::read_dir(&report)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+#[test]
+fn missing_inputs_are_noted_and_bad_sources_refused() {
+    let dir = scratch("short");
+    let out = calibrate(&dir, "[[stages]]\nalgorithm = \"cmaes\"\nbudget = 12\npopulation = 6\n");
+    let report = dir.join("report");
+    let text = ok(&cryofit(&["report", &out.display().to_string(), "--out", &report.display().to_string()]));
+    assert!(text.contains("skipped sensitivity: the calibration has no sensitivity or Morris stage"), "{text}");
+    assert!(text.contains("skipped posterior-marginals"), "{text}");
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(index.contains("Not drawn: the calibration has no sensitivity or Morris stage"), "{index}");
+    assert!(!report.join("sensitivity.svg").exists());
+    assert!(report.join("fit-tiny-wall-temperature.png").exists() && report.join("boiling-curve.svg").exists());
+
+    let fail = |args: &[&str], want: &str| {
+        let o = cryofit(args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    };
+    let r = report.display().to_string();
+    fail(&["report", "no-such-thing", "--out", &r], "neither an existing folder nor a calibration id");
+    fail(&["report", &dir.display().to_string(), "--out", &r], "no calibration.sqlite here");
+    fail(&["report", "7", "--coordinator", "http://127.0.0.1:9", "--out", &r], "calibration 7 on http://127.0.0.1:9");
+    fail(&["report", &out.display().to_string(), "--out", &r, "--band-draws", "5000"], "--band-draws 5000");
+}
