@@ -281,7 +281,12 @@ where
 
 fn render<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, layout: &Layout) -> Res {
     root.fill(&WHITE).map_err(err)?;
-    let body = root.titled(&layout.title, (FAMILY, TITLE_PX)).map_err(err)?;
+    // a long title shrinks to fit the figure's width (DejaVu Sans averages about 0.55 em per
+    // character) rather than running off both edges
+    let width = f64::from(root.dim_in_pixel().0);
+    let chars = layout.title.chars().count().max(1) as f64;
+    let title_px = TITLE_PX.min(0.95 * width / (0.55 * chars)).max(12.0);
+    let body = root.titled(&layout.title, (FAMILY, title_px)).map_err(err)?;
     let cells = body.split_evenly((layout.rows.max(1), layout.cols.max(1)));
     for (cell, panel) in cells.iter().zip(&layout.panels) {
         if let Some(p) = panel {
