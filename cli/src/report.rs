@@ -97,7 +97,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     files.push(("index.html".into(), html.into_bytes()));
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("--out {}: cannot create the directory", args.out.display()))?;
-    write_files(&args.out, &files)?;
+    crate::simulate::write_outputs(&args.out, &files)?;
 
     let drawn = entries.iter().filter(|e| e.skipped.is_none()).count();
     println!(
@@ -112,31 +112,6 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         match &e.skipped {
             None => println!("  {}.svg, {}.png: {}", e.name, e.name, e.title),
             Some(why) => println!("  skipped {}: {why}", e.name),
-        }
-    }
-    Ok(())
-}
-
-/// Writes the files: each to a temporary name first, then all renamed into place.
-fn write_files(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
-    let pid = std::process::id();
-    let temps: Vec<(PathBuf, PathBuf)> =
-        files.iter().map(|(name, _)| (dir.join(format!(".{name}.{pid}.tmp")), dir.join(name))).collect();
-    let cleanup = |temps: &[(PathBuf, PathBuf)]| {
-        for (tmp, _) in temps {
-            let _ = std::fs::remove_file(tmp);
-        }
-    };
-    for ((tmp, _), (_, bytes)) in temps.iter().zip(files) {
-        if let Err(e) = std::fs::write(tmp, bytes) {
-            cleanup(&temps);
-            return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
-        }
-    }
-    for (k, (tmp, dest)) in temps.iter().enumerate() {
-        if let Err(e) = std::fs::rename(tmp, dest) {
-            cleanup(&temps[k..]);
-            return Err(e).with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()));
         }
     }
     Ok(())

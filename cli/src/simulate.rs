@@ -232,18 +232,20 @@ fn summary_json(
 
 /// Creates `dir` and writes every file under a temporary name first, then renames them all: a
 /// failed write leaves no partial file behind (and leaves earlier results in place).
-pub(crate) fn write_outputs(dir: &Path, files: &[(&str, String)]) -> Result<()> {
+pub(crate) fn write_outputs<N: AsRef<str>, C: AsRef<[u8]>>(dir: &Path, files: &[(N, C)]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory {}", dir.display()))?;
     let pid = std::process::id();
-    let temps: Vec<(PathBuf, PathBuf)> =
-        files.iter().map(|(name, _)| (dir.join(format!(".{name}.{pid}.tmp")), dir.join(name))).collect();
+    let temps: Vec<(PathBuf, PathBuf)> = files
+        .iter()
+        .map(|(name, _)| (dir.join(format!(".{}.{pid}.tmp", name.as_ref())), dir.join(name.as_ref())))
+        .collect();
     let cleanup = |temps: &[(PathBuf, PathBuf)]| {
         for (tmp, _) in temps {
             let _ = std::fs::remove_file(tmp);
         }
     };
     for ((tmp, _), (_, contents)) in temps.iter().zip(files) {
-        if let Err(e) = std::fs::write(tmp, contents) {
+        if let Err(e) = std::fs::write(tmp, contents.as_ref()) {
             cleanup(&temps);
             return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
         }

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use cryofit_api as api;
 use cryofit_calib::Space;
-use cryofit_calib::config::{AlgorithmName, CalibrationSpec, ExperimentRef, StageSpec};
+use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
 use cryofit_calib::data::Dataset;
 use cryofit_calib::draws::gaussian_draws;
 use cryofit_calib::inference::InferenceSummary;
@@ -136,25 +136,7 @@ impl<'a> Context<'a> {
         let c = &d.calibration;
         let spec = serde_json::from_value::<api::CreateCalibration>(c.spec.clone())
             .map_err(|e| format!("the stored calibration request cannot be read: {e}"))
-            .map(|req| CalibrationSpec {
-                name: req.name.clone(),
-                description: req.description.clone(),
-                seed: req.seed,
-                experiments: d
-                    .experiments
-                    .iter()
-                    .map(|e| ExperimentRef {
-                        case: format!("experiment {}", e.id),
-                        data: format!("experiment {}", e.id),
-                        name: Some(e.name.clone()),
-                    })
-                    .collect(),
-                parameters: req.parameters,
-                fixed: req.fixed,
-                weights: req.weights,
-                stages: req.stages,
-                max_evaluation_s: req.max_evaluation_s.unwrap_or(cryofit_calib::config::DEFAULT_MAX_EVALUATION_S),
-            });
+            .map(|req| crate::validate::spec_of(&req, &d.experiments));
         let space = spec.as_ref().map_err(Clone::clone).and_then(|s| s.space());
         let stages = spec.as_ref().map(|s| s.stages.clone()).unwrap_or_default();
         let reports = c

@@ -74,14 +74,10 @@ pub struct Prepared {
     pub fluid_hashes: BTreeMap<String, String>,
 }
 
-/// Checks a calibration against its stored experiments (`experiments[k]` = the stored row of
-/// `req.experiments[k]`) and builds its pipeline.
-pub fn calibration(
-    req: &api::CreateCalibration,
-    experiments: &[api::Experiment],
-    fluids: &FluidLoader,
-) -> Result<Prepared, Invalid> {
-    let spec = CalibrationSpec {
+/// The calibration-file form of a stored request: each experiment names its stored row
+/// (`experiments[k]` = the row of `req.experiments[k]`); nothing is checked here.
+pub fn spec_of(req: &api::CreateCalibration, experiments: &[api::Experiment]) -> CalibrationSpec {
+    CalibrationSpec {
         name: req.name.clone(),
         description: req.description.clone(),
         seed: req.seed,
@@ -98,7 +94,17 @@ pub fn calibration(
         weights: req.weights.clone(),
         stages: req.stages.clone(),
         max_evaluation_s: req.max_evaluation_s.unwrap_or(DEFAULT_MAX_EVALUATION_S),
-    };
+    }
+}
+
+/// Checks a calibration against its stored experiments (`experiments[k]` = the stored row of
+/// `req.experiments[k]`) and builds its pipeline.
+pub fn calibration(
+    req: &api::CreateCalibration,
+    experiments: &[api::Experiment],
+    fluids: &FluidLoader,
+) -> Result<Prepared, Invalid> {
+    let spec = spec_of(req, experiments);
     spec.validate().map_err(Invalid::from_message)?;
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
