@@ -112,7 +112,7 @@ pub fn default_start(space: &Space) -> Vec<f64> {
 }
 
 /// File name of the embedded coordinator's database in the output folder.
-const DATABASE: &str = "calibration.sqlite";
+pub(crate) const DATABASE: &str = "calibration.sqlite";
 
 /// Most worker slots (the coordinator's limit of a worker's slots).
 const MAX_WORKERS: usize = 4096;
@@ -163,7 +163,13 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     let (_, experiments) = crate::client::read_calibration(&args.file)?;
     std::fs::create_dir_all(&out_dir)
         .with_context(|| format!("--out {}: cannot create the directory", out_dir.display()))?;
-    let _lock = lock_folder(&out_dir)?;
+    let _lock = lock_folder(&out_dir, || {
+        anyhow!(
+            "--out {}: another cryofit calibrate is running into this folder; wait for it to finish or pick another \
+             --out",
+            out_dir.display()
+        )
+    })?;
     let space = pipeline.space().clone();
     let run = {
         let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
@@ -199,17 +205,14 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
-/// An exclusive lock on the output folder for as long as it is held, so that two runs never
-/// drive the same database. Where folders cannot be locked (not on Unix), there is no lock.
-fn lock_folder(dir: &Path) -> Result<Option<std::fs::File>> {
+/// An exclusive lock on a calibration output folder for as long as it is held, so that two runs
+/// never drive the same database and nothing reads it while a run writes. Where folders cannot be
+/// locked (not on Unix), there is no lock. `busy` is the error when another process holds it.
+pub(crate) fn lock_folder(dir: &Path, busy: impl FnOnce() -> anyhow::Error) -> Result<Option<std::fs::File>> {
     let Ok(handle) = std::fs::File::open(dir) else { return Ok(None) };
     match handle.try_lock() {
         Ok(()) => Ok(Some(handle)),
-        Err(std::fs::TryLockError::WouldBlock) => bail!(
-            "--out {}: another cryofit calibrate is running into this folder; wait for it to finish or pick another \
-             --out",
-            dir.display()
-        ),
+        Err(std::fs::TryLockError::WouldBlock) => Err(busy()),
         Err(std::fs::TryLockError::Error(_)) => Ok(None),
     }
 }

@@ -17,6 +17,8 @@ use cryofit_plots::{IndexEntry, index_html};
 use cryofit_server::figures::{self, CalibrationData, FigureOptions};
 use cryofit_worker::Client;
 
+use crate::calibrate::DATABASE;
+
 /// Arguments of `cryofit report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -37,9 +39,6 @@ pub struct ReportArgs {
     seed: u64,
 }
 
-/// File name of the database in a calibration output folder.
-const DATABASE: &str = "calibration.sqlite";
-
 /// Most posterior-predictive simulations.
 const MAX_BAND_DRAWS: usize = 1000;
 
@@ -58,7 +57,13 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         if !local.is_dir() {
             bail!("{}: not a folder; give a `cryofit calibrate` output folder or a calibration id", local.display());
         }
-        let _lock = lock(local)?;
+        // held while the database is open, so that no `cryofit calibrate` writes into it meanwhile
+        let _lock = crate::calibrate::lock_folder(local, || {
+            anyhow!(
+                "{}: a cryofit calibrate is running into this folder; report it when it has finished",
+                local.display()
+            )
+        })?;
         rt.block_on(from_folder(local))?
     } else {
         let id: i64 = args.source.parse().map_err(|_| {
@@ -95,8 +100,6 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let c = &data.calibration;
     let html = index_html(&format!("{} — calibration report", c.name), &figures::facts(c), &entries);
     files.push(("index.html".into(), html.into_bytes()));
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("--out {}: cannot create the directory", args.out.display()))?;
     crate::simulate::write_outputs(&args.out, &files)?;
 
     let drawn = entries.iter().filter(|e| e.skipped.is_none()).count();
@@ -115,19 +118,6 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Holds the folder's lock while its database is open, so that no `cryofit calibrate` writes
-/// into it meanwhile.
-fn lock(dir: &Path) -> Result<Option<std::fs::File>> {
-    let Ok(handle) = std::fs::File::open(dir) else { return Ok(None) };
-    match handle.try_lock() {
-        Ok(()) => Ok(Some(handle)),
-        Err(std::fs::TryLockError::WouldBlock) => {
-            bail!("{}: a cryofit calibrate is running into this folder; report it when it has finished", dir.display())
-        }
-        Err(std::fs::TryLockError::Error(_)) => Ok(None),
-    }
 }
 
 /// The calibration of a `cryofit calibrate` output folder, read through an embedded coordinator.
