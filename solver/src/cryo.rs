@@ -703,6 +703,23 @@ pub fn gas_convection_htc(s: &Local, p: &CryoParams, t_w: f64) -> f64 {
     Convection::gas(s, p).htc(t_w)
 }
 
+/// Rise of the adiabatic-wall (recovery) temperature of the gas above its static temperature, K:
+/// T_aw − T_g = r v_g²/(2 c_p,g), with the turbulent recovery factor r = Pr_g^(1/3) (about 0.9
+/// for nitrogen vapour); the gas convects heat to the wall as h (T_w − T_aw).
+///
+/// Not in the paper. Decision: the vapour that leaves a chilling line runs at 100–200 m/s near
+/// the discharge (Mach 0.3–0.5), where its static temperature lies v²/(2 c_p) ≈ 5–15 K below its
+/// total temperature. Driving the wall heat flux by the static temperature cools the far,
+/// still-dry end of the line at several hundred W/m² by the gas's own kinetic energy — the
+/// steady pre-cooling of TS3/TS4 that the NBS traces do not show (their wall stays at its
+/// initial temperature until the front is near). A convective boundary layer sees the recovery
+/// temperature, which makes the fast dry flow nearly adiabatic to the wall, as it is.
+pub fn recovery_temperature_rise(s: &Local) -> f64 {
+    let cp = s.cp_g.max(TINY);
+    let rise = cbrt(prandtl(s.mu_g, cp, s.k_g)) * s.v_g * s.v_g / (2.0 * cp);
+    if rise.is_finite() { rise } else { 0.0 }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Boiling-curve anchors
 // ---------------------------------------------------------------------------------------------
@@ -1437,6 +1454,16 @@ mod tests {
             beta_g: 1.0 / T_SAT,
             beta_l: 5.7e-3,
         }
+    }
+
+    /// Pr = 5.44e-6 · 1124 / 7.19e-3 = 0.85043, r = Pr^(1/3) = 0.94743; at 100 m/s the rise is
+    /// 0.94743 · 100² / (2 · 1124) = 4.2145 K; at rest it is zero, and it is even in v_g.
+    #[test]
+    fn recovery_temperature_at_a_hand_checked_point() {
+        let rise = recovery_temperature_rise(&ln2(0.99, 290.0, 100.0, 0.0));
+        assert!((rise - 4.2145).abs() < 1e-3, "{rise}");
+        assert_eq!(recovery_temperature_rise(&ln2(0.99, 290.0, 0.0, 0.0)), 0.0);
+        assert_eq!(recovery_temperature_rise(&ln2(0.99, 290.0, -100.0, 0.0)), rise);
     }
 
     fn defaults() -> CryoParams {

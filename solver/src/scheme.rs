@@ -1206,10 +1206,15 @@ impl<'a> Scheme<'a> {
         let h_amb = ph.ambient_htc_w_m2k * g.outer_area[i] / v;
         let c_w = g.wall_mass[i] * g.material.table().cp(s.t_w[i]) / v;
         let tw = s.t_w[i];
+        // the gas exchanges heat with the wall at its recovery temperature (closure set only; a
+        // fixed coefficient is the plain h (T_w − T_g) of the verification problems)
+        let rec = if ph.fixed_wall_htc.is_none() { cryo::recovery_temperature_rise(&local) } else { 0.0 };
+        let t_gw = tg.add(Lin::constant(rec));
         let den = c_w / dt + hw_g + hw_l + h_amb;
-        let a0 = (-hw_g * (tw - s.t_g[i]) - hw_l * (tw - s.t_l[i]) + h_amb * (ph.ambient_temperature_k - tw)) / den;
+        let a0 =
+            (-hw_g * (tw - s.t_g[i] - rec) - hw_l * (tw - s.t_l[i]) + h_amb * (ph.ambient_temperature_k - tw)) / den;
         let t_w_new = Lin { c0: tw + a0, c: [0.0, 0.0, hw_g / den, hw_l / den] };
-        let q_wg = t_w_new.sub(tg).scale(hw_g);
+        let q_wg = t_w_new.sub(t_gw).scale(hw_g);
         let q_wl = t_w_new.sub(tl).scale(hw_l);
         let q_amb = Lin::constant(h_amb * ph.ambient_temperature_k).sub(t_w_new.scale(h_amb));
         let q_wall = q_wg.add(q_wl);
