@@ -463,6 +463,15 @@ pub const REGISTRY: &[ParamSpec] = &[
         unit: "-",
         description: "scaling of the annular/intermittent and dispersed interfacial drag",
     },
+    ParamSpec {
+        name: "drop_d_max",
+        group: "interface",
+        default: 5.0e-4,
+        lower: 5.0e-5,
+        upper: 8.0e-3,
+        unit: "m",
+        description: "largest drop diameter of dispersed (mist) flow: bounds the Weber diameter 12 σ/(ρ_g v_r²)",
+    },
 ];
 
 /// The registry entry of `name`.

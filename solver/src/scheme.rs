@@ -36,7 +36,7 @@
 use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
 
 use crate::case::BoundaryKind;
-use crate::closures::presence;
+use crate::closures::{presence, smooth_step};
 use crate::cryo;
 use crate::fluids::{FluidTable, Phase, PhaseProps, Saturation};
 use crate::linalg;
@@ -1252,7 +1252,14 @@ impl<'a> Scheme<'a> {
             };
             let scale = cp.interface_mass_transfer_scale;
             let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
-            let mut h_ig = scale * iph.h_ig + blend(pres_g, s.m_g[i], gp.cp);
+            // Vapour below its saturation temperature is metastable and condenses on the liquid
+            // within milliseconds: it is relaxed to T_sat with BLEND_RELAXATION_S, fully from
+            // 1 K of subcooling on (RELAP5 does the same with a large gas-side coefficient).
+            // Decision: the closures' interface areas (drops, films) are made for superheated
+            // vapour; without this, vapour expanded in a pressure swing of a liquid-filled cell
+            // cooled 15–20 K below saturation, towards the end of its property table.
+            let subcooled_gas = smooth_step(sat.t_sat - s.t_g[i]) * s.m_g[i].max(0.0) * gp.cp / BLEND_RELAXATION_S;
+            let mut h_ig = scale * iph.h_ig + blend(pres_g, s.m_g[i], gp.cp) + subcooled_gas;
             let mut h_il = scale * iph.h_il + blend(pres_l, s.m_l[i], lp.cp);
             let q_sum = h_ig * (sat.t_sat - s.t_g[i]) + h_il * (sat.t_sat - s.t_l[i]);
             let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };

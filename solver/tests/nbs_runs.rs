@@ -18,6 +18,13 @@ const RUNS: [(&str, f64); 3] = [("saturated-2.5atm", 245.0), ("saturated-3.4atm"
 
 const STATIONS: [&str; 4] = ["TS1", "TS2", "TS3", "TS4"];
 
+/// Largest physical pressure as a multiple of the dewar's. The first liquid to meet the warm
+/// line boils and recondenses in surges: the subcooled run swings between 0.8 and 2.2 times
+/// the drive pressure at TS1 in its first 20 s (the paper: the measured pressure oscillates with
+/// an amplitude the model does not reach; the report's valve dynamics are unknown). Above 3 times
+/// it would be a numerical liquid hammer, not a surge.
+const SURGE_LIMIT: f64 = 3.0;
+
 #[test]
 fn default_closures_chill_the_nbs_line_down_in_order_and_near_the_data() {
     let fluid = fluids::embedded("nitrogen").unwrap();
@@ -53,7 +60,7 @@ fn default_closures_chill_the_nbs_line_down_in_order_and_near_the_data() {
         let reservoir = case.inlet.pressure_pa.as_ref().unwrap().at(0.0);
         for o in out.probes.iter().filter(|o| o.quantity == "pressure_pa") {
             assert!(
-                o.value > 0.5 * P_OUTLET && o.value < 2.0 * reservoir,
+                o.value > 0.5 * P_OUTLET && o.value < SURGE_LIMIT * reservoir,
                 "{stem}: pressure {} Pa at {} s, {} is not physical (outlet {P_OUTLET} Pa, dewar {reservoir} Pa)",
                 o.value,
                 o.time_s,
