@@ -466,8 +466,8 @@ pub const REGISTRY: &[ParamSpec] = &[
     ParamSpec {
         name: "drop_d_max",
         group: "interface",
-        default: 5.0e-4,
-        lower: 5.0e-5,
+        default: 1.0e-3,
+        lower: 2.5e-4,
         upper: 8.0e-3,
         unit: "m",
         description: "largest drop diameter of dispersed (mist) flow: bounds the Weber diameter 12 σ/(ρ_g v_r²)",

@@ -19,7 +19,7 @@ const RUNS: [(&str, f64); 3] = [("saturated-2.5atm", 245.0), ("saturated-3.4atm"
 const STATIONS: [&str; 4] = ["TS1", "TS2", "TS3", "TS4"];
 
 /// Largest physical pressure as a multiple of the dewar's. The first liquid to meet the warm
-/// line boils and recondenses in surges: the subcooled run swings between 0.8 and 2.2 times
+/// line boils and recondenses in surges: the subcooled run swings between 0.8 and 2.1 times
 /// the drive pressure at TS1 in its first 20 s (the paper: the measured pressure oscillates with
 /// an amplitude the model does not reach; the report's valve dynamics are unknown). Above 3 times
 /// it would be a numerical liquid hammer, not a surge.
