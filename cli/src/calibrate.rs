@@ -557,6 +557,21 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
     Ok(text)
 }
 
+/// Why a variance stage that ran gave no Gaussian approximation (its first warning and how many
+/// there are), or `None` where no variance stage ran.
+fn missing_uncertainty(reports: &[StageReport]) -> Option<String> {
+    reports.iter().rev().find_map(|r| match &r.details {
+        Some(InferenceSummary::Variance(v)) if v.gaussian.is_none() => Some(match v.warnings.first() {
+            Some(first) => format!(
+                "the variance stage's Hessian could not be used ({first}; {} warning(s) in result.json)",
+                v.warnings.len()
+            ),
+            None => "the variance stage's Hessian could not be used".to_string(),
+        }),
+        _ => None,
+    })
+}
+
 /// Standard deviations and 95 % intervals from the last variance or MCMC stage.
 fn uncertainty(reports: &[StageReport]) -> serde_json::Value {
     for r in reports.iter().rev() {
@@ -699,6 +714,11 @@ fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir:
             )
         });
         println!("    {name} = {}{}", fmt_sig(*v), pm.unwrap_or_default());
+    }
+    if unc.is_null()
+        && let Some(why) = missing_uncertainty(&run.reports)
+    {
+        println!("  uncertainty: not estimated: {why}");
     }
     println!("  fit:");
     for (e, f, out) in fits {
