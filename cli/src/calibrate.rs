@@ -813,3 +813,40 @@ impl Bar {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A variance stage (as `result.json` stores it) whose Hessian could not be computed.
+    fn variance_stage(warnings: &[&str], gaussian_missing: bool) -> StageReport {
+        let mut stage = json!({
+            "algorithm": "variance", "best_cost": 2.0, "best_parameters": {"qmfbsc": 0.5}, "budget": 8,
+            "evaluations": 8, "failed_evaluations": 3, "free": ["qmfbsc"], "index": 1,
+            "posterior_draws": null, "stop": "converged",
+            "details": {"variance": {
+                "budget": 8, "divergent": [], "evaluations": 8, "gaussian": null, "hessian_evaluations": 3,
+                "optimum_cost": 2.0, "optimum_physical": [0.5], "optimum_unit": [0.0], "profiles": [],
+                "restart_spread_unit": null, "restarts": [], "stage": null,
+                "stop": {"kind": "converged", "message": "done"}, "warnings": warnings,
+            }},
+        });
+        if !gaussian_missing {
+            stage["details"] = serde_json::Value::Null;
+        }
+        serde_json::from_value(stage).unwrap()
+    }
+
+    #[test]
+    fn a_variance_stage_without_a_gaussian_says_why() {
+        let why =
+            missing_uncertainty(&[variance_stage(&["Hessian diagonal 0 (qmfbsc) could not be computed", "x"], true)])
+                .unwrap();
+        assert!(why.contains("Hessian diagonal 0 (qmfbsc) could not be computed"), "{why}");
+        assert!(why.contains("2 warning(s) in result.json"), "{why}");
+        assert!(missing_uncertainty(&[variance_stage(&[], true)]).unwrap().contains("could not be used"));
+        // no variance stage, nothing to explain
+        assert_eq!(missing_uncertainty(&[variance_stage(&[], false)]), None);
+        assert!(uncertainty(&[variance_stage(&[], true)]).is_null());
+    }
+}
