@@ -1244,7 +1244,7 @@ pub struct Interphase {
     pub h_il: f64,
 }
 
-/// Drop diameter from a critical Weber number, clamped to [10 µm, D/2], m.
+/// Drop diameter from a critical Weber number, clamped to [10 µm, min(D/2, `drop_d_max`)], m.
 ///
 /// Decision: the diameter is also bounded by `drop_d_max` (registry, 1 mm by default). The
 /// Weber size follows the slip, and in the mist behind a quench front the drag has tied the drops
