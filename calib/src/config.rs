@@ -110,7 +110,7 @@ impl AlgorithmName {
             AlgorithmName::Annealing => &["step", "population"],
             AlgorithmName::Genetic => &["population", "mutation"],
             AlgorithmName::Swarm => &["population"],
-            AlgorithmName::Cmaes => &["population", "sigma"],
+            AlgorithmName::Cmaes => &["population", "sigma", "stall_generations"],
             AlgorithmName::NelderMead => &["step"],
             AlgorithmName::Variance => &["restarts", "step"],
             AlgorithmName::Mcmc => &["walkers", "burn_in", "spread"],
@@ -140,6 +140,10 @@ pub struct StageSpec {
     /// Initial step size in unit coordinates (CMA-ES).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<f64>,
+    /// CMA-ES: also stop when the best cost has fallen by less than `tolerance` over this many
+    /// generations (a stall stop, for costs that jitter between nearby points).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stall_generations: Option<usize>,
     /// Step: relative perturbation (sensitivity), unit-coordinate step (pattern, annealing,
     /// Nelder–Mead simplex size), finite-difference step (variance).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -188,6 +192,7 @@ impl StageSpec {
             tolerance: None,
             population: None,
             sigma: None,
+            stall_generations: None,
             step: None,
             keep: None,
             threshold: None,
@@ -213,6 +218,7 @@ impl StageSpec {
         };
         push("population", self.population.is_some());
         push("sigma", self.sigma.is_some());
+        push("stall_generations", self.stall_generations.is_some());
         push("step", self.step.is_some());
         push("keep", self.keep.is_some());
         push("threshold", self.threshold.is_some());
@@ -260,6 +266,17 @@ impl StageSpec {
         }
         if self.keep == Some(0) {
             return Err(format!("{at}.keep: must be at least 1"));
+        }
+        if let Some(g) = self.stall_generations {
+            if g == 0 {
+                return Err(format!("{at}.stall_generations: must be at least 1"));
+            }
+            if self.tolerance.is_none() {
+                return Err(format!(
+                    "{at}.stall_generations = {g}: needs a `tolerance` (the least improvement of the best cost over \
+                     that many generations)"
+                ));
+            }
         }
         Ok(())
     }
@@ -482,5 +499,20 @@ population = 8
         assert!(e.to_string().contains("weights.wall_temperature_k.sigma"), "{e}");
         let e = bad("algorithm = \"cmaes\"", "algorithm = \"cma\"");
         assert!(e.to_string().starts_with("c.toml: "), "{e}");
+        let e = bad("population = 8", "stall_generations = 20");
+        assert!(e.to_string().contains("stages[0].stall_generations = 20: needs a `tolerance`"), "{e}");
+        let e = bad("population = 8", "stall_generations = 0\ntolerance = 1.0");
+        assert!(e.to_string().contains("stages[0].stall_generations: must be at least 1"), "{e}");
+        let e = bad(
+            "algorithm = \"cmaes\"\nbudget = 50\npopulation = 8",
+            "algorithm = \"swarm\"\nbudget = 50\nstall_generations = 3",
+        );
+        assert!(e.to_string().contains("stages[0].stall_generations: does not apply to algorithm \"swarm\""), "{e}");
+        let c = CalibrationSpec::from_toml(
+            &GOOD.replace("population = 8", "stall_generations = 20\ntolerance = 5.0"),
+            "c.toml",
+        )
+        .unwrap();
+        assert_eq!(c.stages[0].stall_generations, Some(20));
     }
 }

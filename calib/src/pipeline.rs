@@ -145,6 +145,7 @@ pub fn build_stage(
             o.population = spec.population.or(o.population);
             o.sigma = spec.sigma.unwrap_or(o.sigma);
             o.tolfun = spec.tolerance;
+            o.stall_generations = spec.stall_generations;
             global(GlobalOptions::Cmaes(o))
         }
     }

@@ -88,7 +88,8 @@ impl Problem {
 
 /// Builds one experiment from the texts of its case and data files (`*_label` name them in
 /// errors): checks that every measured station exists in the case, under the same name, and that
-/// the case runs at least as long as the data.
+/// the case runs at least as long as the data. The experiment's model runs only to the end of
+/// the data ([`SolverModel::with_end_at`](crate::model::SolverModel::with_end_at)).
 ///
 /// `fixed` holds parameter values that are not free; `max_evaluation_s` bounds each run's
 /// computing time (a longer run is a failed evaluation).
@@ -124,6 +125,7 @@ pub fn experiment_from_texts(
     let table = fluid(&case.fluid.name).map_err(|e| format!("{case_label}: {e}"))?;
     let model = crate::model::SolverModel::new(case, table, fixed)
         .map_err(|e| format!("{case_label}: {e}"))?
-        .with_wall_limit(max_evaluation_s);
+        .with_wall_limit(max_evaluation_s)
+        .with_end_at(data.end_time());
     Ok(Experiment { name: name.to_string(), model: Arc::new(model), data })
 }

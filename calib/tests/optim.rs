@@ -355,6 +355,7 @@ fn all_options() -> Vec<GlobalOptions> {
         GlobalOptions::Swarm(SwarmOptions { swarm: Some(10), boundary: Boundary::Clamp, ..Default::default() }),
         cmaes(),
         GlobalOptions::Cmaes(CmaesOptions { restarts: 3, tolx: Some(1e-3), ..Default::default() }),
+        GlobalOptions::Cmaes(CmaesOptions { tolfun: Some(1e-3), stall_generations: Some(5), ..Default::default() }),
     ]
 }
 
@@ -406,7 +407,7 @@ fn different_seed_different_trajectory() {
 #[test]
 fn budget_is_exact_without_tolerance() {
     for options in all_options() {
-        if matches!(&options, GlobalOptions::Cmaes(o) if o.tolx.is_some()) {
+        if matches!(&options, GlobalOptions::Cmaes(o) if o.tolx.is_some() || o.tolfun.is_some()) {
             continue;
         }
         for budget in [1, 3, 257] {
@@ -599,6 +600,40 @@ fn tolerances_stop_early_and_say_why() {
         assert!(o.told() < 20_000);
         assert!(o.best().unwrap().cost < 1e-3, "{options:?}");
     }
+}
+
+/// The sphere plus a jitter in [0, 0.01) that depends on the point's bits, like the cost of a
+/// chaotic simulation between nearby parameter sets.
+fn jittery_sphere(u: &[f64]) -> f64 {
+    let mut h = 0xcbf2_9ce4_8422_2325_u64;
+    for v in u {
+        h = (h ^ v.to_bits()).wrapping_mul(0x0100_0000_01b3);
+        h ^= h >> 29;
+    }
+    sphere(u) + 0.01 * (h % 1_000_003) as f64 / 1_000_003.0
+}
+
+#[test]
+fn cmaes_stall_stop_ends_a_jittering_search_that_tolfun_never_ends() {
+    let tolfun = CmaesOptions { tolfun: Some(1e-4), ..Default::default() };
+    let mut o = GlobalAlgorithm::new(4, None, GlobalOptions::Cmaes(tolfun.clone()), 6000, 3).unwrap();
+    run_batched(&mut o, usize::MAX, &ok(jittery_sphere), 6000);
+    assert_eq!(o.told(), 6000, "TolFun alone: {:?}", o.finished());
+
+    let stall = CmaesOptions { stall_generations: Some(20), ..tolfun };
+    let mut o = GlobalAlgorithm::new(4, None, GlobalOptions::Cmaes(stall), 6000, 3).unwrap();
+    run_batched(&mut o, usize::MAX, &ok(jittery_sphere), 6000);
+    match o.finished() {
+        Some(StopReason::Converged { message }) => assert!(message.contains("stall"), "{message}"),
+        other => panic!("{other:?}"),
+    }
+    assert!(o.told() < 3000, "{} evaluations", o.told());
+    // it stopped at the jitter's level, near the optimum
+    assert!(o.best().unwrap().cost < 0.01, "{}", o.best().unwrap().cost);
+    assert!(o.best().unwrap().unit.iter().all(|x| (x - OPTIMUM_UNIT).abs() < 0.05), "{:?}", o.best().unwrap().unit);
+
+    let bad = CmaesOptions { stall_generations: Some(0), tolfun: Some(1.0), ..Default::default() };
+    assert!(GlobalAlgorithm::new(2, None, GlobalOptions::Cmaes(bad), 100, 1).is_err());
 }
 
 #[test]

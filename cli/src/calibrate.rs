@@ -176,13 +176,24 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         rt.block_on(drive(spec, &label, &experiments, &out_dir, workers))?
     };
 
-    // the best fit, once more, for its probes and per-series figures
+    // the best fit, once more, for its probes and per-series figures: over the whole case (the
+    // evaluations stopped with the data), so that chilldown times after the data's end are known
     let mut fits = Vec::new();
     let mut files: Vec<(String, String)> = Vec::new();
     for (k, e) in problem.experiments.iter().enumerate() {
         let fit = problem.fit_experiment(k, &run.best_parameters).map_err(|m| anyhow!("best fit: {m}"))?;
         let model = solver_of(e)?;
-        let out = model.run(&run.best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?;
+        let out = match model.run_full(&run.best_parameters) {
+            Ok(out) => out,
+            Err(m) => {
+                eprintln!(
+                    "warning: the best fit of experiment `{}` failed after the end of its data ({m}); \
+                     its probes end with the data",
+                    e.name
+                );
+                model.run(&run.best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?
+            }
+        };
         files.push((format!("fit-{}.csv", e.name), probes_csv(&out.probes)));
         fits.push((e, fit, out));
     }
@@ -557,6 +568,24 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
     Ok(text)
 }
 
+/// A warning for the ± of a Gaussian approximation whose Hessian was not positive definite:
+/// along the regularised directions its covariance is a placeholder, not an estimate.
+fn uncertainty_caveat(reports: &[StageReport]) -> Option<String> {
+    reports.iter().rev().find_map(|r| match &r.details {
+        Some(InferenceSummary::Variance(v)) => match &v.gaussian {
+            Some(g) if !g.positive_definite => Some(format!(
+                "the Hessian at the best point is not positive definite ({} of {} directions regularised): the \
+                 best point is not a minimum along every direction, and the ± above are placeholders along those \
+                 directions, not estimates (eigenvalues and warnings in result.json)",
+                g.regularised,
+                g.eigenvalues.len()
+            )),
+            _ => None,
+        },
+        _ => None,
+    })
+}
+
 /// Why a variance stage that ran gave no Gaussian approximation (its first warning and how many
 /// there are), or `None` where no variance stage ran.
 fn missing_uncertainty(reports: &[StageReport]) -> Option<String> {
@@ -720,6 +749,9 @@ fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir:
     {
         println!("  uncertainty: not estimated: {why}");
     }
+    if let Some(caveat) = uncertainty_caveat(&run.reports) {
+        println!("  uncertainty: {caveat}");
+    }
     println!("  fit:");
     for (e, f, out) in fits {
         let rms: Vec<String> =
@@ -835,6 +867,28 @@ mod tests {
             stage["details"] = serde_json::Value::Null;
         }
         serde_json::from_value(stage).unwrap()
+    }
+
+    #[test]
+    fn a_gaussian_from_an_indefinite_hessian_is_flagged() {
+        let gaussian = |positive_definite: bool| {
+            let mut stage = variance_stage(&[], true);
+            let mut v = serde_json::to_value(&stage).unwrap();
+            v["details"]["variance"]["gaussian"] = json!({
+                "centre_physical": [0.5], "centre_unit": [0.5], "correlation": [[1.0]], "cost": 2.0,
+                "cost_noise": null, "covariance_physical": [[1e6]], "covariance_unit": [[1e6]],
+                "eigenvalues": [-3.0], "hessian_unit": [[-3.0]],
+                "interval95": [{"clamped": true, "lower": 0.25, "upper": 4.0}], "log_det_half_hessian": 0.0,
+                "noise_inflation": 1.0, "positive_definite": positive_definite,
+                "regularised": if positive_definite { 0 } else { 1 }, "sd_physical": [1e3], "sd_unit": [1e3],
+            });
+            stage = serde_json::from_value(v).unwrap();
+            stage
+        };
+        let caveat = uncertainty_caveat(&[gaussian(false)]).unwrap();
+        assert!(caveat.contains("not positive definite (1 of 1 directions regularised)"), "{caveat}");
+        assert_eq!(uncertainty_caveat(&[gaussian(true)]), None);
+        assert_eq!(uncertainty_caveat(&[variance_stage(&[], true)]), None);
     }
 
     #[test]

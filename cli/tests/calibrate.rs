@@ -89,7 +89,7 @@ scale = "log"
 wall_temperature_k = { weight = 1.0, sigma = 1.0 }
 [[stages]]
 algorithm = "cmaes"
-budget = 100
+budget = 150
 [[stages]]
 algorithm = "variance"
 budget = 40
@@ -122,9 +122,9 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
         let (lo, hi) = (u["lower95"].as_f64().unwrap(), u["upper95"].as_f64().unwrap());
         assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {best})");
     }
-    assert_eq!(result["evaluations"].as_u64().unwrap(), 140);
+    assert_eq!(result["evaluations"].as_u64().unwrap(), 190);
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
-    assert_eq!(evaluations.lines().count(), 141);
+    assert_eq!(evaluations.lines().count(), 191);
     assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes
@@ -182,7 +182,7 @@ fn bad_calibration_files_are_refused_with_the_field_named() {
     .unwrap();
     let cases = [
         (TWIN.replace("name = \"Gwsc\"", "name = \"Gwscc\""), "did you mean `Gwsc`"),
-        (TWIN.replace("budget = 100", "budget = 100\nwalkers = 4"), "stages[0].walkers: does not apply"),
+        (TWIN.replace("budget = 150", "budget = 150\nwalkers = 4"), "stages[0].walkers: does not apply"),
         (TWIN.replace("sigma = 1.0 }", "sigma = -1.0 }"), "weights.wall_temperature_k.sigma"),
         (TWIN.replace("data = \"data.csv\"", "data = \"missing.csv\""), "experiments[0].data: cannot read"),
         (TWIN.to_string(), "station `TS9`"),

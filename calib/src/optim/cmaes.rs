@@ -51,6 +51,13 @@ pub struct CmaesOptions {
     pub tolfun: Option<f64>,
     /// TolX: stop when `σ·√C_ii` and `σ·|p_c,i|` are below this for every coordinate.
     pub tolx: Option<f64>,
+    /// Stall stop: with `tolfun`, also stop when the best cost of the run has fallen by less than
+    /// `tolfun` over the last this many generations. TolFun asks the whole recent history and
+    /// the current generation to agree to within `tolfun`, which a cost that jitters between
+    /// nearby points (a chaotic simulation) never does; the stall rule asks only that the search
+    /// has stopped finding anything better (the "objective improvement over a period" rule of
+    /// common optimisation libraries).
+    pub stall_generations: Option<usize>,
     /// IPOP restarts: when a stop criterion is met (tolerances, or the numerical floors: step below
     /// 1e-12 or condition of `C` above 1e14), start again from a uniform random mean with σ₀ and
     /// twice the population, this many times at most.
@@ -59,7 +66,7 @@ pub struct CmaesOptions {
 
 impl Default for CmaesOptions {
     fn default() -> Self {
-        Self { population: None, sigma: 0.3, tolfun: None, tolx: None, restarts: 0 }
+        Self { population: None, sigma: 0.3, tolfun: None, tolx: None, stall_generations: None, restarts: 0 }
     }
 }
 
@@ -141,6 +148,13 @@ struct Core {
     /// Best finite cost of each recent generation, for TolFun.
     #[cfg_attr(feature = "serde", serde(with = "super::exact"))]
     history: Vec<f64>,
+    /// Generations of the stall stop (with `tolfun`).
+    #[cfg_attr(feature = "serde", serde(default))]
+    stall_generations: Option<usize>,
+    /// Best finite cost since the (re)start after each of the last `stall_generations + 1`
+    /// generations.
+    #[cfg_attr(feature = "serde", serde(default, with = "super::exact"))]
+    best_path: Vec<f64>,
 }
 
 impl Core {
@@ -156,6 +170,7 @@ impl Core {
         self.gen_run = 0;
         self.gen_eigen = 0;
         self.history.clear();
+        self.best_path.clear();
     }
 
     /// `σ·max √C_ii`: the largest standard deviation of the sampling distribution along a coordinate.
@@ -270,9 +285,17 @@ impl Core {
 
         self.gen_run += 1;
         let cap = 10 + (30 * n).div_ceil(self.lambda);
-        self.history.push(finite.iter().copied().fold(f64::INFINITY, f64::min));
+        let generation_best = finite.iter().copied().fold(f64::INFINITY, f64::min);
+        self.history.push(generation_best);
         if self.history.len() > cap {
             self.history.remove(0);
+        }
+        if let Some(w) = self.stall_generations {
+            let so_far = self.best_path.last().copied().unwrap_or(f64::INFINITY).min(generation_best);
+            self.best_path.push(so_far);
+            if self.best_path.len() > w + 1 {
+                self.best_path.remove(0);
+            }
         }
     }
 
@@ -305,6 +328,20 @@ impl Core {
                         true,
                     ));
                 }
+            }
+        }
+        if let (Some(w), Some(tol)) = (self.stall_generations, self.tolfun)
+            && self.best_path.len() > w
+        {
+            let (then, now) = (self.best_path[0], self.best_path[w]);
+            if now.is_finite() && then - now < tol {
+                return Some((
+                    format!(
+                        "stall: the best cost fell by {:.3e} over the last {w} generations < {tol:.3e}",
+                        then - now
+                    ),
+                    true,
+                ));
             }
         }
         if sd < RESOLUTION_FLOOR {
@@ -393,6 +430,9 @@ impl Cmaes {
         require(options.sigma > 0.0 && options.sigma <= 1.0, "sigma", options.sigma, "in (0, 1]")?;
         check_tolerance("tolfun", options.tolfun)?;
         check_tolerance("tolx", options.tolx)?;
+        if let Some(w) = options.stall_generations {
+            require(w >= 1, "stall_generations", w as f64, "at least 1")?;
+        }
         // Restarts double the population; keep it far from overflowing.
         require(options.restarts <= 30, "restarts", options.restarts as f64, "at most 30")?;
         let mut core = Core {
@@ -415,6 +455,8 @@ impl Cmaes {
             gen_eigen: 0,
             samples: Vec::new(),
             history: Vec::new(),
+            stall_generations: options.stall_generations,
+            best_path: Vec::new(),
         };
         core.reset(DVector::from_vec(m));
         let book = Book::start(dim, budget, &mut core);
