@@ -569,21 +569,24 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
 }
 
 /// A warning for the ± of a Gaussian approximation whose Hessian was not positive definite:
-/// along the regularised directions its covariance is a placeholder, not an estimate.
-fn uncertainty_caveat(reports: &[StageReport]) -> Option<String> {
-    reports.iter().rev().find_map(|r| match &r.details {
-        Some(InferenceSummary::Variance(v)) => match &v.gaussian {
-            Some(g) if !g.positive_definite => Some(format!(
-                "the Hessian at the best point is not positive definite ({} of {} directions regularised): the \
-                 best point is not a minimum along every direction, and the ± above are placeholders along those \
-                 directions, not estimates (eigenvalues and warnings in result.json)",
-                g.regularised,
-                g.eigenvalues.len()
-            )),
-            _ => None,
-        },
-        _ => None,
-    })
+/// along the regularised directions its covariance is a placeholder, not an estimate. `unc` is
+/// what [`uncertainty`] chose; the warning concerns that stage only (an MCMC stage's ± after a
+/// variance stage need none).
+fn uncertainty_caveat(reports: &[StageReport], unc: &serde_json::Value) -> Option<String> {
+    if unc["method"] != "variance" {
+        return None;
+    }
+    let stage = unc["stage"].as_u64()?;
+    let r = reports.iter().find(|r| r.index as u64 == stage)?;
+    let Some(InferenceSummary::Variance(v)) = &r.details else { return None };
+    let g = v.gaussian.as_ref().filter(|g| !g.positive_definite)?;
+    Some(format!(
+        "the Hessian at the best point is not positive definite ({} of {} directions regularised): the best \
+         point is not a minimum along every direction, and the ± above are placeholders along those directions, \
+         not estimates (eigenvalues and warnings in result.json)",
+        g.regularised,
+        g.eigenvalues.len()
+    ))
 }
 
 /// Why a variance stage that ran gave no Gaussian approximation (its first warning and how many
@@ -749,7 +752,7 @@ fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir:
     {
         println!("  uncertainty: not estimated: {why}");
     }
-    if let Some(caveat) = uncertainty_caveat(&run.reports) {
+    if let Some(caveat) = uncertainty_caveat(&run.reports, &unc) {
         println!("  uncertainty: {caveat}");
     }
     println!("  fit:");
@@ -872,8 +875,7 @@ mod tests {
     #[test]
     fn a_gaussian_from_an_indefinite_hessian_is_flagged() {
         let gaussian = |positive_definite: bool| {
-            let mut stage = variance_stage(&[], true);
-            let mut v = serde_json::to_value(&stage).unwrap();
+            let mut v = serde_json::to_value(variance_stage(&[], true)).unwrap();
             v["details"]["variance"]["gaussian"] = json!({
                 "centre_physical": [0.5], "centre_unit": [0.5], "correlation": [[1.0]], "cost": 2.0,
                 "cost_noise": null, "covariance_physical": [[1e6]], "covariance_unit": [[1e6]],
@@ -882,13 +884,13 @@ mod tests {
                 "noise_inflation": 1.0, "positive_definite": positive_definite,
                 "regularised": if positive_definite { 0 } else { 1 }, "sd_physical": [1e3], "sd_unit": [1e3],
             });
-            stage = serde_json::from_value(v).unwrap();
-            stage
+            serde_json::from_value::<StageReport>(v).unwrap()
         };
-        let caveat = uncertainty_caveat(&[gaussian(false)]).unwrap();
+        let caveat_of = |reports: &[StageReport]| uncertainty_caveat(reports, &uncertainty(reports));
+        let caveat = caveat_of(&[gaussian(false)]).unwrap();
         assert!(caveat.contains("not positive definite (1 of 1 directions regularised)"), "{caveat}");
-        assert_eq!(uncertainty_caveat(&[gaussian(true)]), None);
-        assert_eq!(uncertainty_caveat(&[variance_stage(&[], true)]), None);
+        assert_eq!(caveat_of(&[gaussian(true)]), None);
+        assert_eq!(caveat_of(&[variance_stage(&[], true)]), None);
     }
 
     #[test]
