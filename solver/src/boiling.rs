@@ -100,12 +100,20 @@ pub fn boiling_curve(
         gravity: GRAVITY,
         beta_g: -gas.drho_dt / gas.rho,
         beta_l: -liquid.drho_dt / liquid.rho,
-    };
-    let p = CryoParams::from_set(params).with_fluid(fluid.constants());
+        rho_l_sat: sat.rho_l,
+        ..Local::default()
+    }
+    .with_boiling_basis(fluid);
+    let p = CryoParams::from_set(params)
+        .with_fluid(fluid.constants())
+        .with_ideal_cp_over_r(crate::driver::ideal_cp_over_r(fluid));
     let anchors = cryo::boiling_anchors(&base, &p, set);
     let points = wall_temperatures
         .iter()
-        .map(|&t_w| BoilingPoint { t_w, q_w_m2: cryo::boiling_curve(&Local { t_w, ..base }, &p, set) })
+        .map(|&t_w| BoilingPoint {
+            t_w,
+            q_w_m2: cryo::boiling_curve(&Local { t_w, ..base }.with_boiling_basis(fluid), &p, set),
+        })
         .collect();
     Ok(BoilingCurve { t_sat_k: t_sat, anchors, points })
 }

@@ -278,10 +278,10 @@ pub const REGISTRY: &[ParamSpec] = &[
         name: "hg0esc",
         group: "convection",
         default: 1.0,
-        lower: 0.25,
-        upper: 4.0,
+        lower: 0.75,
+        upper: 1.25,
         unit: "-",
-        description: "scaling of the Dittus–Boelter Reynolds exponent 0.8 of the gas at the dry wall",
+        description: "scaling of the Dittus–Boelter Reynolds exponent 0.8 of the gas at the dry wall (bounds: exponents 0.6–1.0)",
     },
     ParamSpec {
         name: "hl0sc",
@@ -431,8 +431,8 @@ pub const REGISTRY: &[ParamSpec] = &[
         name: "hgi0esc",
         group: "interface",
         default: 1.0,
-        lower: 0.25,
-        upper: 4.0,
+        lower: 0.75,
+        upper: 1.25,
         unit: "-",
         description: "scaling of the Dittus–Boelter Reynolds exponent on the gas side of the interface",
     },
@@ -440,8 +440,8 @@ pub const REGISTRY: &[ParamSpec] = &[
         name: "hli0esc",
         group: "interface",
         default: 1.0,
-        lower: 0.25,
-        upper: 4.0,
+        lower: 0.75,
+        upper: 1.25,
         unit: "-",
         description: "scaling of the Dittus–Boelter Reynolds exponent on the liquid side of the interface",
     },
@@ -471,6 +471,42 @@ pub const REGISTRY: &[ParamSpec] = &[
         upper: 8.0e-3,
         unit: "m",
         description: "largest drop diameter of dispersed (mist) flow: bounds the Weber diameter 12 σ/(ρ_g v_r²)",
+    },
+    ParamSpec {
+        name: "iloeje_x_floor",
+        group: "film_boiling",
+        default: 0.05,
+        lower: 0.01,
+        upper: 0.5,
+        unit: "-",
+        description: "floor of the Iloeje quality factors 1 − c2 X^c3 of T_mfb and film boiling; where it binds, Xmfbsc, Xemfbsc, Xtmfbsc and Xetmfbsc have no effect",
+    },
+    ParamSpec {
+        name: "boil_gap_chf",
+        group: "transition_boiling",
+        default: 0.5,
+        lower: 0.1,
+        upper: 5.0,
+        unit: "K",
+        description: "smallest T_chf − T_onb of the boiling curve; where it binds, Tchfsc has no effect",
+    },
+    ParamSpec {
+        name: "boil_gap_mfb",
+        group: "transition_boiling",
+        default: 1.0,
+        lower: 0.1,
+        upper: 10.0,
+        unit: "K",
+        description: "smallest T_mfb − T_chf of the boiling curve; where it binds, Tmfbsc (or the rewet temperature) has no effect",
+    },
+    ParamSpec {
+        name: "chf_over_mfb",
+        group: "chf",
+        default: 1.0,
+        lower: 1.0,
+        upper: 3.0,
+        unit: "-",
+        description: "smallest q_chf / max(q_onb, q_mfb) of the boiling curve; where it binds, qchfsc and the CHF shape have no effect",
     },
 ];
 
@@ -662,7 +698,7 @@ mod tests {
             assert!(groups.contains(&p.group), "{}: group {}", p.name, p.group);
             assert!(!p.description.contains('\n'), "{}", p.name);
         }
-        assert!((45..=50).contains(&REGISTRY.len()), "{}", REGISTRY.len());
+        assert!((45..=60).contains(&REGISTRY.len()), "{}", REGISTRY.len());
     }
 
     #[test]

@@ -124,10 +124,24 @@ pub struct StepBudget {
     pub ambient_heat: f64,
     /// Frictional dissipation returned to the fluid as heat, J.
     pub dissipation: f64,
-    /// Energy added by state adjustments (vanishing-phase clean-up), J.
+    /// Energy added by state adjustments outside the balance equations (vanishing-phase
+    /// resets and clamps), J, net.
     pub adjustment: f64,
+    /// The same adjustments' magnitudes, summed, J.
+    pub adjustment_abs: f64,
+    /// Magnitude of the kinetic and potential energy carried through the boundaries, J (the
+    /// scale of the energy balance where no heat moves).
+    pub mechanical_flux_abs: f64,
     /// Total-energy (h + v²/2 + g z) inflow minus outflow through the boundaries, J.
     pub total_energy_flux: f64,
+}
+
+impl StepBudget {
+    /// Books an adjustment of `joules` made outside the balance equations.
+    fn adjust(&mut self, joules: f64) {
+        self.adjustment += joules;
+        self.adjustment_abs += joules.abs();
+    }
 }
 
 /// What a step produced besides the new state.
@@ -779,7 +793,7 @@ impl<'a> Scheme<'a> {
                         value: target,
                         reason: "outside the property table",
                     })?;
-                    budget.adjustment += (m * pr.u - e) * g.volume[i];
+                    budget.adjust((m * pr.u - e) * g.volume[i]);
                     Ok((target, pr, m * pr.u, m > tiny))
                 };
                 if m <= tiny {
@@ -811,7 +825,7 @@ impl<'a> Scheme<'a> {
                             value: t,
                             reason: "outside the property table",
                         })?;
-                        budget.adjustment += (m * pr.u - e) * g.volume[i];
+                        budget.adjust((m * pr.u - e) * g.volume[i]);
                         Ok((t, pr, m * pr.u, true))
                     }
                     // the value is the specific internal energy, J/kg (no temperature fits it)
@@ -837,7 +851,7 @@ impl<'a> Scheme<'a> {
         }
         // total-energy boundary flux: enthalpy, kinetic and potential energy carried by the
         // boundary mass fluxes (donor properties)
-        budget.total_energy_flux = self.total_energy_flux(&next, s, dt, inlet1, outlet1);
+        (budget.total_energy_flux, budget.mechanical_flux_abs) = self.total_energy_flux(&next, dt, inlet1, outlet1);
         next.time = s.time + dt;
 
         // no NaN escapes a step: anything non-finite rejects it, naming where
@@ -1182,6 +1196,13 @@ impl<'a> Scheme<'a> {
             gravity: if self.physics.gravity { GRAVITY } else { 0.0 },
             beta_g: -gp.drho_dt / gp.rho,
             beta_l: -lp.drho_dt / lp.rho,
+            // the cell's saturation densities; the vapour bases of the boiling correlations are
+            // read from the table only where the wall boils ([`cryo::Local::with_boiling_basis`]
+            // in `sources`): elsewhere only the saturated vapour density is used
+            rho_l_sat: if sat.h_lg > 0.0 { sat.rho_l } else { lp.rho },
+            vap_sat: cryo::Vapour { rho: if sat.h_lg > 0.0 { sat.rho_g } else { gp.rho }, mu: gp.mu, k: gp.k, cp: gp.cp },
+            vap_film: cryo::Vapour { rho: gp.rho, mu: gp.mu, k: gp.k, cp: gp.cp },
+            vap_mfb: cryo::Vapour { rho: gp.rho, mu: gp.mu, k: gp.k, cp: gp.cp },
         }
     }
 
@@ -1203,7 +1224,10 @@ impl<'a> Scheme<'a> {
         let tl = Lin::var(s.t_l[i], 3);
         let sat = s.sat[i];
         let has_sat = sat.h_lg > 0.0;
-        let local = self.local(s, i);
+        let mut local = self.local(s, i);
+        if liq_here && has_sat && ph.wall_heat_transfer && ph.fixed_wall_htc.is_none() {
+            local = local.with_boiling_basis(self.fluid);
+        }
         let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[i]);
         // The wetted fraction relaxes to its regime value with the time constant tauw, but never
         // below the perimeter the liquid covers by geometry alone: a pool in the bottom of the
@@ -1321,20 +1345,16 @@ impl<'a> Scheme<'a> {
         (Sources { gamma, s_g, s_l, q_wall, q_amb, pc_g, pc_l }, wetted)
     }
 
-    fn total_energy_flux(
-        &self,
-        next: &State,
-        old: &State,
-        dt: f64,
-        inlet: &BoundaryState,
-        outlet: &BoundaryState,
-    ) -> f64 {
+    /// Total energy (h + v²/2 + g z) carried in minus out through the boundaries over the
+    /// step, J, and the magnitude of its kinetic and potential parts, J.
+    fn total_energy_flux(&self, next: &State, dt: f64, inlet: &BoundaryState, outlet: &BoundaryState) -> (f64, f64) {
         let g = &self.grid;
         let n = g.n;
         let z_in = 0.0;
         let z_out: f64 = (0..n).map(|i| g.dx[i] * g.sin_cell[i]).sum();
         let grav = if self.physics.gravity { GRAVITY } else { 0.0 };
         let mut total = 0.0;
+        let mut mechanical = 0.0;
         for (j, b, z, sign) in [(0usize, inlet, z_in, 1.0), (n, outlet, z_out, -1.0)] {
             let area = g.area_junction[j] * b.open_fraction;
             for gas in [true, false] {
@@ -1354,13 +1374,14 @@ impl<'a> Scheme<'a> {
                     };
                     (m, if m > 0.0 { e / m } else { 0.0 } + b.p / rho)
                 };
-                let _ = old;
                 // fluid drawn from a reservoir brings its stagnation enthalpy (it was at rest)
                 let ke = if inflow && b.kind == BoundaryKind::Reservoir { 0.0 } else { 0.5 * v * v };
-                total += sign * dt * v * area * m * (h + ke + grav * z);
+                let mass = dt * v * area * m;
+                total += sign * mass * (h + ke + grav * z);
+                mechanical += (mass * (ke + grav * z)).abs();
             }
         }
-        total
+        (total, mechanical)
     }
 }
 
