@@ -978,8 +978,8 @@ fn bromley_with(s: &Local, v: &Vapour, t_w: f64) -> f64 {
     let h_mod = s.h_lg.max(0.0) + BROMLEY_SENSIBLE * v.cp.max(0.0) * dt;
     let pr = prandtl(v.mu, v.cp, v.k).max(TINY);
     let drho = (s.rho_l_sat - v.rho).max(1e-6 * s.rho_l_sat.max(TINY));
-    let group =
-        boiling_gravity(s) * v.rho.max(0.0) * v.k.max(0.0).powi(2) * drho * h_mod * v.cp.max(0.0) / (diameter(s) * dt * pr);
+    let group = boiling_gravity(s) * v.rho.max(0.0) * v.k.max(0.0).powi(2) * drho * h_mod * v.cp.max(0.0)
+        / (diameter(s) * dt * pr);
     BROMLEY_C * fourth_root(group)
 }
 

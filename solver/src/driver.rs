@@ -441,11 +441,8 @@ pub fn run(
     let (ke0, pe0) = e0_parts;
     let (ke1, pe1) = energy_parts(&s, &grid, case.physics.gravity);
     let heat_scale = cum.wall_heat.abs() + cum.ambient_heat.abs();
-    let scale = if heat_scale > 0.0 {
-        heat_scale
-    } else {
-        (ke1 - ke0).abs() + (pe1 - pe0).abs() + cum.mechanical_flux_abs
-    };
+    let scale =
+        if heat_scale > 0.0 { heat_scale } else { (ke1 - ke0).abs() + (pe1 - pe0).abs() + cum.mechanical_flux_abs };
     let energy_balance_error = if scale > 0.0 { residual.abs() / scale } else { residual.abs() };
     Ok(Output {
         probes,
