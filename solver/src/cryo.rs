@@ -1766,9 +1766,11 @@ mod tests {
         let dt0 = berenson_dt_mfb(&s);
         assert!(rel(dt0, expected) < 1e-12);
         assert!((dt0 - 69.4).abs() < 0.5, "{dt0}");
-        // Iloeje with Table 1: X_e of a saturated mixture is the static quality
-        let x = 0.3 * 4.612 / (0.3 * 4.612 + 0.7 * 806.08);
+        // Iloeje with Table 1 at the flow quality (G_g + x_s)/(G + 1), G in kg/(m² s)
+        let gg: f64 = 0.3 * 4.612 * 1.0;
         let gl: f64 = 0.7 * 806.08 * 0.1;
+        let x_s = 0.3 * 4.612 / (0.3 * 4.612 + 0.7 * 806.08);
+        let x = (gg + x_s) / (gg + gl + 1.0);
         let expected = 1.25 * dt0 * (1.0 - 1.04 * x * x) * (1.0 + 0.2 * gl.powf(0.165));
         assert!(rel(iloeje_dt_mfb(&s, &defaults()), expected) < 1e-9);
     }
@@ -1784,8 +1786,10 @@ mod tests {
         let h_br = bromley_htc(&s, 200.0);
         assert!(rel(h_br, expected) < 1e-12);
         assert!(h_br > 50.0 && h_br < 300.0, "{h_br}");
-        let x = 0.3 * 4.612 / (0.3 * 4.612 + 0.7 * 806.08);
+        let gg: f64 = 0.3 * 4.612 * 1.0;
         let gl: f64 = 0.7 * 806.08 * 0.1;
+        let x_s = 0.3 * 4.612 / (0.3 * 4.612 + 0.7 * 806.08);
+        let x = (gg + x_s) / (gg + gl + 1.0);
         let expected = 2.0 * h_br * (1.0 - 1.04 * x * x) * (1.0 + 0.2 * gl.powf(0.1));
         assert!(rel(film_boiling_htc(&s, &defaults(), CorrelationSet::Paper, 200.0), expected) < 1e-9);
     }
@@ -1801,10 +1805,12 @@ mod tests {
         let xe = ((mg * s.h_g + ml * s.h_l) / (mg + ml) - H_L_SAT) / H_LG;
         assert!(rel(equilibrium_quality(&s), xe) < 1e-12);
         let g = mg * 3.0 + ml * 0.3;
+        // the flow quality (G_g + x_s)/(G + 1), G in kg/(m² s)
+        let x = (mg * 3.0 + mg / (mg + ml)) / (g + 1.0);
         let ratio: f64 = 4.612 / 806.08;
-        let re = g * D / 5.44e-6 * (xe + ratio * (1.0 - xe));
+        let re = g * D / 5.44e-6 * (x + ratio * (1.0 - x));
         let pr: f64 = 5.44e-6 * 1124.0 / 7.19e-3;
-        let y = 1.0 - 0.1 * (1.0 / ratio - 1.0).powf(0.4) * (1.0 - xe).powf(0.4);
+        let y = 1.0 - 0.1 * (1.0 / ratio - 1.0).powf(0.4) * (1.0 - x).powf(0.4);
         let expected = 0.023 * re.powf(0.8) * pr.powf(0.8) * y * 7.19e-3 / D;
         assert!(rel(miropolskii_htc(&s, &p), expected) < 1e-12);
         // Darr–Hartwig: G = 100 kg/(m² s) of liquid alone
@@ -2314,6 +2320,11 @@ mod tests {
         let mut sub = ln2(0.1, 95.0, 0.5, 1.0);
         sub.t_l = 70.0;
         states.push(sub);
+        // strongly subcooled, fast liquid: T_onb above Theler's T_chf, so the boiling curve
+        // holds T_chf at T_onb + boil_gap_chf
+        let mut fast = ln2(0.05, 120.0, 0.5, 6.0);
+        fast.t_l = 64.0;
+        states.push(fast);
         let mut hot = ln2(0.7, 250.0, 3.0, 0.3);
         hot.h_g += 1124.0 * 60.0;
         states.push(hot);
@@ -2340,17 +2351,30 @@ mod tests {
         out
     }
 
+    /// The bounds of the boiling curve's ordering and the parameters each one holds: they act
+    /// where those are at a bound (`Tonbsc` at its upper, the others at their lower bound).
+    const ORDERING_BOUNDS: [(&str, &[&str]); 3] =
+        [("boil_gap_chf", &["Tchfsc", "Tonbsc"]), ("boil_gap_mfb", &["Tmfbsc"]), ("chf_over_mfb", &["qchfsc"])];
+
     #[test]
     fn every_parameter_is_live() {
-        let base = fingerprint(&defaults());
-        assert!(base.iter().all(|x| x.is_finite()));
         for name in PARAMETER_NAMES {
             let sp = spec(name).unwrap();
+            let mut base_set = ParameterSet::new();
+            if let Some((_, held)) = ORDERING_BOUNDS.iter().find(|(b, _)| b == name) {
+                for h in held.iter() {
+                    let sp = spec(h).unwrap();
+                    // the scale of T_onb goes up, every other held scale down
+                    base_set.set(h, if *h == "Tonbsc" { sp.upper } else { sp.lower }).unwrap();
+                }
+            }
+            let base = fingerprint(&CryoParams::from_set(&base_set));
+            assert!(base.iter().all(|x| x.is_finite()));
             let live = [sp.lower, sp.upper, 0.5 * (sp.lower + sp.default), 0.5 * (sp.upper + sp.default)]
                 .into_iter()
                 .filter(|v| *v != sp.default)
                 .any(|v| {
-                    let mut set = ParameterSet::new();
+                    let mut set = base_set.clone();
                     set.set(name, v).unwrap();
                     let fp = fingerprint(&CryoParams::from_set(&set));
                     fp.iter().zip(&base).any(|(a, b)| rel(*a, *b) > 1e-9)

@@ -635,7 +635,10 @@ mod tests {
 
     #[test]
     fn multiplicative_scales_span_a_factor_four() {
-        let scales: Vec<&ParamSpec> = REGISTRY.iter().filter(|p| p.name.ends_with("sc")).collect();
+        // (the exponent scales, `…esc`, are bounded by the Reynolds numbers of the line instead:
+        // see `cryo::scaled_dittus_boelter`)
+        let scales: Vec<&ParamSpec> =
+            REGISTRY.iter().filter(|p| p.name.ends_with("sc") && !p.name.ends_with("esc")).collect();
         assert!(scales.len() >= 20, "{}", scales.len());
         for p in scales {
             assert!(p.default > 0.0, "{}", p.name);
