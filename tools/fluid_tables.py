@@ -4,14 +4,15 @@
 Usage (from the repository root):
 
     tools/setup.sh --tables            # installs the pinned CoolProp (tools/requirements.txt)
-    python3 tools/fluid_tables.py      # all fluids, writes data/fluids/
-    python3 tools/fluid_tables.py nitrogen --check   # one fluid, then report table accuracy
+    python3 tools/fluid_tables.py      # all five fluids, writes data/fluids/ (about 3 minutes)
+    python3 tools/fluid_tables.py nitrogen oxygen  # only these
 
 For every fluid the script writes
 
 * ``data/fluids/<fluid>.cft``  -- the binary property table read by ``cryofit_solver::fluids``;
-* ``data/fluids/<fluid>_check.csv`` -- CoolProp check points (stable, metastable and saturation
-  states) that the solver's tests compare the table against.
+* ``data/fluids/<fluid>_check.csv`` and ``<fluid>_saturation_check.csv`` -- CoolProp check points
+  (stable and metastable states; saturation states) that the solver's tests compare the table
+  against.
 
 The format is described in ``data/fluids/README.md``.  Each phase table is a tensor-product cubic
 Hermite interpolant on a piecewise-uniform (pressure, temperature) grid: every node stores the
@@ -24,7 +25,14 @@ margin of two grid intervals) past saturation, at the triple-point temperature, 
 isotherm reaches the spinodal (no mechanically stable density left, or dp/drho|T below 2 % of
 its saturation value), whichever comes first. Rows that end at the spinodal keep clear of it by
 1 % of the critical temperature, and the header records the spinodal temperature, located by
-bisection.
+bisection. Above the critical pressure both phase tables hold the one supercritical fluid; where
+a row's density branch cannot follow it across the pseudo-critical line (a temperature node just
+below Tc), the row continues from the equilibrium density.
+
+Pressures run from 1 kPa to 10 MPa (the pressure surges of a chilldown line reach several MPa,
+above the critical pressure of hydrogen and nitrogen), temperatures from the triple point to
+350 K. ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen (see data/fluids/README.md
+for which to use when).
 """
 
 from __future__ import annotations
@@ -48,12 +56,13 @@ FORMAT_VERSION = 1
 FLUIDS = {
     "nitrogen": ("Nitrogen", "nitrogen (N2)"),
     "hydrogen": ("Hydrogen", "normal hydrogen (n-H2)"),
+    "parahydrogen": ("ParaHydrogen", "para-hydrogen (p-H2)"),
     "oxygen": ("Oxygen", "oxygen (O2)"),
     "methane": ("Methane", "methane (CH4)"),
 }
 
-P_MIN = 5.0e3  # 0.05 bar
-P_MAX = 4.0e6  # 40 bar
+P_MIN = 1.0e3  # 0.01 bar
+P_MAX = 1.0e7  # 100 bar: pressure surges in a chilldown line reach several MPa
 T_MAX = 350.0
 METASTABLE_K = 20.0  # required reach past the saturation line
 MARGIN_INTERVALS = 2  # extra grid intervals computed past that reach
@@ -97,16 +106,35 @@ def fluid_axes(cp_name):
     else:
         t_breaks += [T_MAX]
         t_steps += [0.04 * tc]
-    p_breaks = [P_MIN, 1.0e5, 1.0e6]
-    p_steps = [5.0e3, 2.5e4]
-    # finer pressure spacing approaching the critical pressure, where it lies below P_MAX
-    if pc < P_MAX:
-        p_breaks += [0.8 * pc, 1.1 * pc, P_MAX]
-        p_steps += [5.0e4, 2.0e4, 5.0e4]
-    else:
-        p_breaks += [P_MAX]
-        p_steps += [5.0e4]
-    return axis_segments(p_breaks, p_steps), axis_segments(t_breaks, t_steps)
+    return pressure_segments(pc), axis_segments(t_breaks, t_steps)
+
+
+# Supercritical pressure segments above 1.1 pc: (upper end / pc, spacing / pc). The spacing grows
+# with the distance from the critical point, a piecewise-uniform stand-in for a geometric grid.
+SUPERCRITICAL_STEPS = ((1.6, 0.025), (2.5, 0.05), (4.0, 0.1), (math.inf, 0.2))
+
+
+def pressure_segments(pc):
+    """Pressure grid: log-like segments at low pressure, finest around the critical pressure.
+
+    1-5 kPa every 0.5 kPa, 5-100 kPa every 5 kPa, 0.1-1 MPa every 25 kPa, then every 50 kPa up to
+    0.8 pc, every 20 kPa from 0.8 to 1.1 pc, and coarser with distance above it (within each
+    segment the spacing is as close to the nominal one as a whole number of intervals allows).
+    """
+    p_breaks = [P_MIN, 5.0e3, 1.0e5, 1.0e6]
+    p_steps = [5.0e2, 5.0e3, 2.5e4]
+    if 0.8 * pc > p_breaks[-1]:
+        p_breaks.append(0.8 * pc)
+        p_steps.append(5.0e4)
+    p_breaks.append(1.1 * pc)
+    p_steps.append(2.0e4)
+    for hi, step in SUPERCRITICAL_STEPS:
+        p_breaks.append(min(hi * pc, P_MAX))
+        p_steps.append(step * pc)
+        if p_breaks[-1] >= P_MAX:
+            break
+    assert p_breaks[-1] == P_MAX and all(b > a for a, b in zip(p_breaks, p_breaks[1:]))
+    return axis_segments(p_breaks, p_steps)
 
 
 class Eos:
@@ -136,6 +164,7 @@ class Eos:
             return None
         if not (dpdr > 0.0):
             return None
+        best = (abs(f), rho, dpdr)
         for _ in range(100):
             step = f / dpdr
             lim = 0.2 * rho
@@ -159,6 +188,15 @@ class Eos:
             if abs(step) < 1e-13 * rho and abs(f) < 1e-9 * max(p, 1.0):
                 a.update(CP.DmassT_INPUTS, rho, t)
                 return rho
+            best = min(best, (abs(f), rho, dpdr))
+        # Round-off in p(rho, T) can keep both tests from passing together: near the critical
+        # point (dp/drho|T small, so the step stays above 1e-13 rho) and in a stiff liquid at low
+        # pressure (the residual stays above 1e-9 p). Accept the best iterate when its residual
+        # is below 1e-9 p or amounts to a relative density error below 1e-12.
+        f_best, rho, dpdr = best
+        if f_best <= max(1e-9 * max(p, 1.0), 1e-12 * rho * dpdr):
+            a.update(CP.DmassT_INPUTS, rho, t)
+            return rho
         return None
 
     def values(self, p, t, rho0):
@@ -249,6 +287,7 @@ class Saturation:
 def build_phase(cp_name, phase, p_nodes, t_nodes, sat, t_step_at):
     """March every pressure row along T from the stable side; return rows of (j_lo, node data)."""
     eos = Eos(cp_name, phase)
+    flash = CP.AbstractState("HEOS", cp_name)
     rows = []
     nt = len(t_nodes)
     for i, p in enumerate(p_nodes):
@@ -301,6 +340,17 @@ def build_phase(cp_name, phase, p_nodes, t_nodes, sat, t_step_at):
             if metastable and dpdrho_ref is None:
                 _, dpdrho_ref = sat.dpdrho_sat(tsat, 0.0 if phase == "liquid" else 1.0)
             r = eos.node(p, t, rho_guess)
+            if r is None and not subcritical:
+                # Above the critical pressure there is one fluid, whose density changes steeply
+                # but continuously across the pseudo-critical line. Where that line falls
+                # between two temperature nodes on either side of Tc, the branch the row was
+                # following (gas-like or liquid-like) does not reach p at the next node:
+                # continue from the equilibrium density.
+                try:
+                    flash.update(CP.PT_INPUTS, p, t)
+                    r = eos.node(p, t, flash.rhomass())
+                except ValueError:
+                    r = None
             ended = r is None
             if not ended:
                 rho, dpdrho, data = r

@@ -9,7 +9,7 @@ use crate::fluid_source;
 /// Arguments of `cryofit props`.
 #[derive(Debug, Args)]
 pub struct PropsArgs {
-    /// Fluid: nitrogen, hydrogen (normal), oxygen or methane (aliases N2, H2, O2, CH4).
+    /// Fluid: nitrogen, hydrogen (normal), parahydrogen, oxygen or methane (aliases N2, H2, p-H2, O2, CH4).
     fluid: String,
     /// Pressure, Pa.
     #[arg(long = "p", value_name = "PA", allow_negative_numbers = true)]

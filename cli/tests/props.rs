@@ -47,6 +47,39 @@ fn supercritical_state_has_no_saturation_temperature() {
     assert!(v["t_sat_k"].is_null());
 }
 
+fn props_json(args: &[&str]) -> serde_json::Value {
+    let out = cryofit(args);
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("JSON")
+}
+
+#[test]
+fn parahydrogen_is_its_own_table() {
+    // CoolProp 8.0.0 at 300 kPa and 100 K: ParaHydrogen ρ 0.727887 kg/m³, c_p 13494.1 J/(kg K);
+    // (normal) Hydrogen ρ 0.727798 kg/m³, c_p 11291.4 J/(kg K)
+    let para = props_json(&["props", "parahydrogen", "--p", "300000", "--t", "100", "--json"]);
+    assert_eq!(para["fluid"], "parahydrogen");
+    assert_eq!(para["phase"], "gas");
+    let normal = props_json(&["props", "hydrogen", "--p", "300000", "--t", "100", "--json"]);
+    assert_eq!(normal["fluid"], "hydrogen");
+    let rel = |v: &serde_json::Value, key: &str, want: f64| (v[key].as_f64().unwrap() / want - 1.0).abs();
+    assert!(rel(&para, "density_kg_m3", 0.727887) < 5e-4, "{para}");
+    assert!(rel(&para, "cp_j_kg_k", 13494.14) < 5e-3, "{para}");
+    assert!(rel(&normal, "density_kg_m3", 0.727798) < 5e-4, "{normal}");
+    assert!(rel(&normal, "cp_j_kg_k", 11291.40) < 5e-3, "{normal}");
+    assert_eq!(props_json(&["props", "p-H2", "--p", "300000", "--t", "100", "--json"])["fluid"], "parahydrogen");
+}
+
+#[test]
+fn tables_hold_pressure_surges_up_to_ten_megapascals() {
+    // CoolProp 8.0.0: nitrogen at 8 MPa and 100 K, 725.778 kg/m³; at 2 kPa and 300 K, 0.0224616
+    let v = props_json(&["props", "nitrogen", "--p", "8e6", "--t", "100", "--json"]);
+    assert_eq!(v["phase"], "supercritical");
+    assert!((v["density_kg_m3"].as_f64().unwrap() / 725.778 - 1.0).abs() < 5e-4, "{v}");
+    let v = props_json(&["props", "nitrogen", "--p", "2e3", "--t", "300", "--json"]);
+    assert!((v["density_kg_m3"].as_f64().unwrap() / 0.0224616 - 1.0).abs() < 5e-4, "{v}");
+}
+
 #[test]
 fn human_readable_output_names_units() {
     let out = cryofit(&["props", "methane", "--p", "2e5", "--t", "300"]);

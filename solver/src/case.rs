@@ -115,7 +115,7 @@ impl Profile {
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FluidSection {
-    /// Table name: nitrogen, hydrogen, oxygen, methane (or an alias such as N2).
+    /// Table name: nitrogen, hydrogen (normal), parahydrogen, oxygen, methane (or an alias such as N2).
     pub name: String,
 }
 

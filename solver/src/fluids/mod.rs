@@ -119,7 +119,11 @@ pub enum FluidError {
 }
 
 /// Names of the tables built into every cryofit binary.
-pub const EMBEDDED_FLUIDS: [&str; 4] = ["nitrogen", "hydrogen", "oxygen", "methane"];
+///
+/// `hydrogen` is normal hydrogen (75 % ortho, room-temperature equilibrium); `parahydrogen` is
+/// para-hydrogen, the composition of liquid hydrogen as delivered and of its vapour in a
+/// transfer line (see `data/fluids/README.md`).
+pub const EMBEDDED_FLUIDS: [&str; 5] = ["nitrogen", "hydrogen", "parahydrogen", "oxygen", "methane"];
 
 macro_rules! embedded_bytes {
     ($name:literal) => {
@@ -127,21 +131,24 @@ macro_rules! embedded_bytes {
     };
 }
 
-static EMBEDDED: [(&str, &[u8]); 4] = [
+static EMBEDDED: [(&str, &[u8]); 5] = [
     ("nitrogen", embedded_bytes!("nitrogen")),
     ("hydrogen", embedded_bytes!("hydrogen")),
+    ("parahydrogen", embedded_bytes!("parahydrogen")),
     ("oxygen", embedded_bytes!("oxygen")),
     ("methane", embedded_bytes!("methane")),
 ];
 
-static PARSED: [OnceLock<FluidTable>; 4] = [OnceLock::new(), OnceLock::new(), OnceLock::new(), OnceLock::new()];
+static PARSED: [OnceLock<FluidTable>; 5] = [const { OnceLock::new() }; 5];
 
-/// Normalises common aliases (`N2`, `LN2`, `parahydrogen` is *not* an alias) to a table name.
+/// Normalises common aliases (`N2`, `LN2`, `p-H2`) to a table name. `H2` and `LH2` name normal
+/// hydrogen; para-hydrogen is asked for by name (`parahydrogen`, `para-hydrogen`, `p-H2`).
 pub fn canonical_name(name: &str) -> Option<&'static str> {
     let n = name.trim().to_ascii_lowercase();
     Some(match n.as_str() {
         "nitrogen" | "n2" | "ln2" => "nitrogen",
         "hydrogen" | "h2" | "lh2" | "normal-hydrogen" | "n-h2" => "hydrogen",
+        "parahydrogen" | "para-hydrogen" | "p-h2" => "parahydrogen",
         "oxygen" | "o2" | "lox" | "lo2" => "oxygen",
         "methane" | "ch4" | "lch4" | "lng" => "methane",
         _ => return None,

@@ -20,7 +20,7 @@ const MEM_NODE: usize = 4 * LANES;
 /// Constants of a fluid and the limits of its table.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct FluidConstants {
-    /// Table name (`nitrogen`, `hydrogen`, ...).
+    /// Table name (`nitrogen`, `hydrogen`, `parahydrogen`, ...).
     pub name: String,
     /// Human-readable name.
     pub description: String,
