@@ -1696,6 +1696,84 @@ mod tests {
         CryoParams::from_set(&set)
     }
 
+    /// No closure bounds a parameter-scaled quantity except through the registry: at random
+    /// states and parameter sets, a 1 % change of a scale moves the quantity it scales unless a
+    /// registry bound (or the regime maximum of eq:convection_Nu) is the active branch there.
+    #[test]
+    fn no_hidden_bound_pins_a_parameter() {
+        let mut r = Rng(7);
+        let bump = |p: &CryoParams, f: &dyn Fn(&mut CryoParams)| {
+            let mut q = *p;
+            f(&mut q);
+            q
+        };
+        let (mut checked, mut bound) = (0usize, 0usize);
+        for _ in 0..20_000 {
+            let s = random_state(&mut r);
+            if s.h_lg <= 0.0 {
+                continue;
+            }
+            let p = random_params(&mut r);
+            let set = CorrelationSet::Paper;
+            let a = boiling_anchors(&s, &p, set);
+            // Tchfsc moves T_chf unless boil_gap_chf holds it
+            let q = bump(&p, &|q| q.t_chf_scale *= 1.01);
+            let b = boiling_anchors(&s, &q, set);
+            let held = (a.t_chf - (a.t_onb + p.boil_gap_chf)).abs() < 1e-9 * a.t_chf
+                || (b.t_chf - (b.t_onb + q.boil_gap_chf)).abs() < 1e-9 * b.t_chf;
+            if held {
+                bound += 1;
+            } else {
+                assert!(b.t_chf != a.t_chf, "Tchfsc pinned at {s:?}");
+                checked += 1;
+            }
+            // Tmfbsc moves T_mfb unless boil_gap_mfb holds it
+            let q = bump(&p, &|q| q.t_mfb_scale *= 1.01);
+            let b = boiling_anchors(&s, &q, set);
+            let held = (a.t_mfb - (a.t_chf + p.boil_gap_mfb)).abs() < 1e-9 * a.t_mfb
+                || (b.t_mfb - (b.t_chf + q.boil_gap_mfb)).abs() < 1e-9 * b.t_mfb;
+            if !held {
+                assert!(b.t_mfb != a.t_mfb, "Tmfbsc pinned at {s:?}");
+            }
+            // qchfsc moves q_chf unless chf_over_mfb holds it (or there is no CHF margin left)
+            let q = bump(&p, &|q| q.q_chf_scale *= 1.01);
+            let b = boiling_anchors(&s, &q, set);
+            let floor = |p: &CryoParams, x: &Anchors| p.chf_over_mfb * x.q_onb.max(x.q_mfb);
+            let held = (a.q_chf - floor(&p, &a)).abs() <= 1e-12 * a.q_chf
+                || (b.q_chf - floor(&q, &b)).abs() <= 1e-12 * b.q_chf
+                || critical_heat_flux(&s, &p) == 0.0;
+            if !held {
+                assert!(b.q_chf != a.q_chf, "qchfsc pinned at {s:?}");
+            }
+            // Xmfbsc moves film boiling unless the Iloeje floor holds it (or X = 0)
+            let x = regime_quality(&s);
+            let q = bump(&p, &|q| q.fb_x_scale *= 1.01);
+            let factor = |p: &CryoParams| 1.0 - p.fb_x_scale * pow_param(x, p.fb_x_exponent);
+            // (where X^c3 is resolvable next to 1)
+            let resolvable = (factor(&p) - factor(&q)).abs() > 1e-12;
+            if resolvable && factor(&p) > p.iloeje_x_floor && factor(&q) > q.iloeje_x_floor {
+                assert!(
+                    film_boiling_htc(&s, &q, set, s.t_w.max(s.t_sat + 5.0))
+                        != film_boiling_htc(&s, &p, set, s.t_w.max(s.t_sat + 5.0)),
+                    "Xmfbsc pinned at {s:?}"
+                );
+            }
+            // the exponent scale moves the gas's forced convection wherever forced convection is
+            // the largest of eq:convection_Nu's four branches (no cap on the Nusselt number)
+            let q = bump(&p, &|q| q.gas_wall_exponent_scale *= 1.01);
+            let re = s.rho_g * s.v_g.abs() * diameter(&s) / s.mu_g;
+            let pr = prandtl(s.mu_g, s.cp_g, s.k_g);
+            let forced = |p: &CryoParams| scaled_dittus_boelter(re, pr, p.gas_wall_exponent_scale);
+            if re > 10.0 && forced(&p).min(forced(&q)) > NU_LAMINAR * 1.01 && s.gravity == 0.0 {
+                assert!(
+                    gas_convection_htc(&s, &q, s.t_w) != gas_convection_htc(&s, &p, s.t_w),
+                    "hg0esc pinned at Re {re}"
+                );
+            }
+        }
+        assert!(checked > 1000 && bound > 0, "{checked} free, {bound} held by boil_gap_chf");
+    }
+
     #[test]
     fn logarithm_constants_are_exact() {
         assert_eq!(LN_4_25, 4.25f64.ln());
