@@ -99,6 +99,8 @@ pub struct Coordinator {
     settings: CoordinatorSettings,
     running: Mutex<BTreeMap<i64, Running>>,
     metrics: Arc<Metrics>,
+    /// Claims so far: rotates which calibration a claim serves first.
+    turn: std::sync::atomic::AtomicUsize,
 }
 
 /// A validated calibration ready to store.
@@ -231,11 +233,11 @@ impl Coordinator {
                     tracing::error!(calibration = id, error = %e, "cannot resume calibration");
                     let mut tx = db.begin().await?;
                     db::fail_calibration(&mut tx, id, &e).await?;
-                    tx.commit().await?;
+                    db.commit(tx).await?;
                 }
             }
         }
-        Ok(Self { db, settings, running: Mutex::new(running), metrics })
+        Ok(Self { db, settings, running: Mutex::new(running), metrics, turn: Default::default() })
     }
 
     /// The database.
@@ -315,7 +317,7 @@ impl Coordinator {
                 name: &c.request.name,
                 spec_json: &spec_json,
                 experiment_ids_json: &ids_json,
-                budget: c.pipeline.budget() as i64,
+                budget: i64::try_from(c.pipeline.budget()).unwrap_or(i64::MAX),
                 state_json: &state_json,
                 solver_version: api::SOLVER_VERSION,
                 fluid_hashes_json: &hashes_json,
@@ -333,7 +335,7 @@ impl Coordinator {
         Self::top_up(&mut tx, id, &mut r, target, target).await?;
         let (status, error) = Self::status_of(&r.pipeline);
         db::update_progress(&mut tx, id, &progress(&r.pipeline, status, error)?).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         if status == "running" {
             running.insert(id, r);
         }
@@ -374,13 +376,18 @@ impl Coordinator {
         }
         let prefix = format!("{:016x}", rand::thread_rng().r#gen::<u64>());
         let lease_ms = self.settings.lease.as_millis() as i64;
+        if !eligible.is_empty() {
+            let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let n = eligible.len();
+            eligible.rotate_left(turn % n);
+        }
         let claimed = if eligible.is_empty() || req.max_jobs == 0 {
             Vec::new()
         } else {
             db::claim(&mut tx, &eligible, i64::from(req.max_jobs.min(1000)), &prefix, &req.worker, now_ms() + lease_ms)
                 .await?
         };
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         for (id, r) in changed {
             running.insert(id, r);
         }
@@ -427,7 +434,7 @@ impl Coordinator {
                 }
             }
         };
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         out
     }
 
@@ -540,7 +547,7 @@ impl Coordinator {
         }
         let told = Self::finish_sets(&mut tx, &sets).await?;
         let changed = self.tell(&mut tx, &running, told).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         Self::apply(&mut running, changed);
         drop(running);
         for (r, o) in reports.iter().zip(&out) {
@@ -595,6 +602,16 @@ impl Coordinator {
                     }
                     _ => {}
                 }
+            }
+            // two finite costs can still sum to infinity: that set fails, it is not told as a cost
+            if let Outcome::Ok { cost } = outcome
+                && !cost.is_finite()
+            {
+                outcome = Outcome::Failed {
+                    reason: format!(
+                        "the experiments' costs sum to {cost} (not a finite number); check the weights and sigmas"
+                    ),
+                };
             }
             let first = parts[0];
             told.entry(first.calibration_id)
@@ -683,7 +700,7 @@ impl Coordinator {
         db::record_results(&mut tx, &failed).await?;
         let told = Self::finish_sets(&mut tx, &sets).await?;
         let changed = self.tell(&mut tx, &running, told).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         Self::apply(&mut running, changed);
         if !expired.is_empty() {
             self.metrics.expired(expired.len());
@@ -697,7 +714,7 @@ impl Coordinator {
         let mut running = self.running.lock().await;
         let mut tx = self.db.begin().await?;
         let before = db::cancel_calibration(&mut tx, id).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         running.remove(&id);
         Ok(before)
     }

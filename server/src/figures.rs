@@ -48,11 +48,14 @@ pub struct FigureOptions {
     pub seed: u64,
     /// Threads for those simulations.
     pub threads: usize,
+    /// End the model runs at the end of each experiment's data (the dashboard) instead of the
+    /// case's `time.end_s` (reports, which show the whole run).
+    pub end_at_data: bool,
 }
 
 impl Default for FigureOptions {
     fn default() -> Self {
-        Self { band_draws: 0, seed: 0, threads: 1 }
+        Self { band_draws: 0, seed: 0, threads: 1, end_at_data: false }
     }
 }
 
@@ -72,7 +75,7 @@ pub fn figures(d: &CalibrationData, fluids: &FluidLoader, opts: &FigureOptions) 
     let (marginals, corner) = posterior_figures(&ctx, &posterior);
     out.push(marginals);
     out.push(corner);
-    let built = ctx.experiments(fluids);
+    let built = ctx.experiments(fluids, opts.end_at_data);
     let best = c.best_parameters.clone();
     match &built {
         Err(why) => out.push(skipped("fit", "Model against data", why.clone())),
@@ -188,7 +191,7 @@ impl<'a> Context<'a> {
         Err("no MCMC stage and no finished variance stage: there is no posterior yet".into())
     }
 
-    fn experiments(&self, fluids: &FluidLoader) -> Result<Vec<Built>, String> {
+    fn experiments(&self, fluids: &FluidLoader, end_at_data: bool) -> Result<Vec<Built>, String> {
         let spec = self.spec.as_ref().map_err(Clone::clone)?;
         let mut fixed = ParameterSet::new();
         for (name, &v) in &spec.fixed {
@@ -203,9 +206,12 @@ impl<'a> Context<'a> {
                 let data =
                     Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
                 let (table, _) = fluids(&case.fluid.name).map_err(|m| format!("{case_label}: {m}"))?;
-                let model = SolverModel::new(case.clone(), table, &fixed)
+                let mut model = SolverModel::new(case.clone(), table, &fixed)
                     .map_err(|m| format!("{case_label}: {m}"))?
                     .with_wall_limit(Some(spec.max_evaluation_s));
+                if end_at_data {
+                    model = model.with_end_at(data.end_time());
+                }
                 Ok(Built { name: e.name.clone(), case, data, model: Arc::new(model) })
             })
             .collect()
