@@ -743,3 +743,116 @@ fn refusal(version: &str, hashes: &BTreeMap<String, String>, req: &api::ClaimReq
     }
     None
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    const CASE: &str = include_str!("../../tests/fixtures/tiny.toml");
+    const DATA: &str = include_str!("../../tests/fixtures/tiny-data.csv");
+
+    async fn coordinator(tag: &str) -> (Coordinator, std::path::PathBuf) {
+        let dir = std::env::temp_dir().join(format!("cryofit-coord-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        let db = Db::open(&dir.join("c.db").display().to_string()).await.expect("open");
+        let c = Coordinator::load(db, CoordinatorSettings::default(), Arc::default()).await.expect("load");
+        (c, dir)
+    }
+
+    async fn experiment(c: &Coordinator) -> i64 {
+        let mut tx = c.db.begin().await.expect("begin");
+        let id = db::insert_experiment(&mut tx, "tiny", "nitrogen", CASE, DATA).await.expect("insert");
+        c.db.commit(tx).await.expect("commit");
+        id
+    }
+
+    async fn calibration(c: &Coordinator, experiments: &[i64]) -> i64 {
+        let req: api::CreateCalibration = serde_json::from_value(json!({
+            "name": "t",
+            "seed": 3,
+            "experiments": experiments,
+            "parameters": [{"name": "Gwsc", "lower": 0.5, "upper": 2.0}],
+            "weights": {"wall_temperature_k": {"weight": 1.0, "sigma": 1.0}},
+            "stages": [{"algorithm": "cmaes", "budget": 60, "population": 6}]
+        }))
+        .expect("request");
+        let mut rows = Vec::new();
+        for &e in experiments {
+            rows.push(db::experiment(c.db.reader(), e).await.expect("experiment"));
+        }
+        let p = crate::validate::calibration(&req, &rows, &crate::embedded_fluids(), &api::Limits::default())
+            .expect("valid");
+        c.create(NewCalibration { request: req, pipeline: p.pipeline, fluid_hashes: p.fluid_hashes })
+            .await
+            .expect("created")
+    }
+
+    fn claim(max_jobs: u32) -> api::ClaimRequest {
+        let (_, hash) = crate::embedded_fluids()("nitrogen").expect("nitrogen");
+        api::ClaimRequest {
+            worker: "w".into(),
+            slots: 1,
+            max_jobs,
+            solver_version: api::SOLVER_VERSION.into(),
+            fluid_hashes: [("nitrogen".to_string(), hash)].into(),
+        }
+    }
+
+    #[tokio::test]
+    async fn claims_take_turns_across_running_calibrations() {
+        let (c, dir) = coordinator("fair").await;
+        let e = experiment(&c).await;
+        let first = calibration(&c, &[e]).await;
+        let second = calibration(&c, &[e]).await;
+        let mut got: BTreeMap<i64, usize> = BTreeMap::new();
+        // a one-slot worker claiming one job at a time, holding them all: before, the oldest
+        // calibration's six queued jobs all went first
+        for _ in 0..6 {
+            for j in c.claim(&claim(1)).await.expect("claim").jobs {
+                *got.entry(j.calibration_id).or_default() += 1;
+            }
+        }
+        assert_eq!((got.get(&first), got.get(&second)), (Some(&3), Some(&3)), "{got:?}");
+        // a larger claim interleaves: the second job of each comes after the first of each
+        let jobs = c.claim(&claim(2)).await.expect("claim").jobs;
+        let ids: Vec<i64> = jobs.iter().map(|j| j.calibration_id).collect();
+        assert!(ids.contains(&first) && ids.contains(&second), "{ids:?}");
+        c.db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[tokio::test]
+    async fn costs_that_sum_to_infinity_fail_their_parameter_set() {
+        let (c, dir) = coordinator("infinite").await;
+        let (e1, e2) = (experiment(&c).await, experiment(&c).await);
+        let id = calibration(&c, &[e1, e2]).await;
+        let jobs = c.claim(&claim(2)).await.expect("claim").jobs;
+        assert_eq!(jobs.len(), 2);
+        assert_eq!(jobs[0].parameter_set_id, jobs[1].parameter_set_id, "both experiments of one set");
+        let outcome = api::JobOutcome::Ok { cost: 1e308 };
+        let items: Vec<api::JobResult> = jobs
+            .iter()
+            .map(|j| api::JobResult {
+                job_id: j.id,
+                lease_id: j.lease_id.clone(),
+                outcome: outcome.clone(),
+                duration_s: Some(0.1),
+                breakdown: None,
+                worker: Some("w".into()),
+            })
+            .collect();
+        let reports: Vec<Report<'_>> = items.iter().map(Report::batched).collect();
+        let out = c.results(&reports).await.expect("recorded, not an internal error");
+        assert!(out.iter().all(|r| r.counted), "{out:?}");
+        let sets = db::parameter_sets_page(c.db.reader(), id, None, None, 100, 0).await.expect("sets");
+        let set = sets.iter().find(|s| s.id == jobs[0].parameter_set_id).expect("the set");
+        assert_eq!(set.status, "failed", "{set:?}");
+        assert!(set.reason.as_deref().is_some_and(|r| r.contains("sum to inf")), "{set:?}");
+        let row = db::calibration(c.db.reader(), id).await.expect("calibration");
+        assert_eq!((row.status.as_str(), row.evaluations, row.failed_evaluations), ("running", 1, 1));
+        c.db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}

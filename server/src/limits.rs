@@ -274,6 +274,49 @@ mod tests {
         max
     }
 
+    fn spec(stages: serde_json::Value, max_evaluation_s: f64) -> CalibrationSpec {
+        serde_json::from_value(serde_json::json!({
+            "name": "t",
+            "experiments": [{"case": "c.toml", "data": "d.csv"}],
+            "parameters": [{"name": "Gwsc"}, {"name": "hg0sc"}, {"name": "tauw"}, {"name": "Gisc"}],
+            "stages": stages,
+            "max_evaluation_s": max_evaluation_s,
+        }))
+        .expect("spec")
+    }
+
+    fn refused(stages: serde_json::Value, max_evaluation_s: f64) -> Invalid {
+        check_calibration(&spec(stages, max_evaluation_s), 4, &Limits::default()).expect_err("refused")
+    }
+
+    #[test]
+    fn oversized_requests_are_refused_naming_the_field_and_the_limit() {
+        use serde_json::json;
+        let e = refused(json!([{"algorithm": "morris", "budget": 500, "trajectories": 100_000_000_000_000u64}]), 60.0);
+        assert_eq!(e.field.as_deref(), Some("stages[0].trajectories"), "{e:?}");
+        assert!(e.message.contains("at most 10000") && e.message.contains("--max-stage-size"), "{e:?}");
+        let e = refused(json!([{"algorithm": "mcmc", "budget": 500, "walkers": 100_000_000_000_000u64}]), 60.0);
+        assert_eq!(e.field.as_deref(), Some("stages[0].walkers"), "{e:?}");
+        let big = json!({"algorithm": "cmaes", "budget": 9_000_000_000_000_000_000u64});
+        let e = refused(json!([big, big, big]), 60.0);
+        assert_eq!(e.field.as_deref(), Some("stages[0].budget"), "{e:?}");
+        assert!(e.message.contains("--max-budget"), "{e:?}");
+        // each stage within the limit, the sum not
+        let half = json!({"algorithm": "cmaes", "budget": 600_000});
+        let e = refused(json!([half, half]), 60.0);
+        assert_eq!(e.field.as_deref(), Some("stages"), "{e:?}");
+        // a chain of 900 000 evaluations in four dimensions: about 100 MiB of state
+        let e = refused(json!([{"algorithm": "mcmc", "budget": 900_000}]), 60.0);
+        assert_eq!(e.field.as_deref(), Some("stages[0]"), "{e:?}");
+        assert!(e.message.contains("--max-state-bytes") && e.message.contains("walkers"), "{e:?}");
+        let e = refused(json!([{"algorithm": "cmaes", "budget": 50}]), 1e9);
+        assert_eq!(e.field.as_deref(), Some("max_evaluation_s"), "{e:?}");
+        // what the examples ask for passes
+        let fine = json!([{"algorithm": "morris", "budget": 500, "trajectories": 100}, {"algorithm": "cmaes", "budget": 1500},
+            {"algorithm": "variance", "budget": 420}, {"algorithm": "mcmc", "budget": 20_000}]);
+        check_calibration(&spec(fine, 120.0), 4, &Limits::default()).expect("a usual calibration fits");
+    }
+
     #[test]
     fn estimates_bound_the_stored_state() {
         use AlgorithmName::*;

@@ -123,9 +123,10 @@ pub fn calibration(
 ) -> Result<Prepared, Invalid> {
     check_name(&req.name)?;
     let spec = spec_of(req, experiments);
-    spec.validate().map_err(Invalid::from_message)?;
-    // sizes first: building the pipeline allocates what its stages ask for
+    // sizes first (plain arithmetic on the request): building the pipeline allocates what its
+    // stages ask for, and the limits name the flag that sets them
     limits::check_calibration(&spec, spec.parameters.len(), limits)?;
+    spec.validate().map_err(Invalid::from_message)?;
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
         fixed.set(name, v).map_err(|e| Invalid::at(format!("fixed.{name}"), e.to_string()))?;
@@ -187,6 +188,14 @@ pub fn calibration(
 #[cfg(test)]
 mod tests {
     use super::field_of;
+
+    #[test]
+    fn names_are_counted_in_characters() {
+        assert!(super::check_name(&"é".repeat(200)).is_ok(), "400 bytes, 200 characters");
+        let e = super::check_name(&"é".repeat(201)).unwrap_err();
+        assert_eq!(e.message, "201 characters: at most 200");
+        assert!(super::check_name("  ").is_err());
+    }
 
     #[test]
     fn fields_are_taken_from_messages() {
