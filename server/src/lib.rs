@@ -423,3 +423,68 @@ pub async fn start_embedded(database: &std::path::Path, mut settings: Settings) 
     }));
     Ok(Embedded { addr, stop: Some(tx), handle })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use axum::body::Body;
+    use axum::http::{Request, StatusCode};
+    use tower::ServiceExt as _;
+
+    fn scratch(tag: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("cryofit-lib-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        dir
+    }
+
+    async fn health(app: &axum::Router) -> (StatusCode, String) {
+        let r =
+            app.clone().oneshot(Request::get("/healthz").body(Body::empty()).expect("request")).await.expect("answer");
+        let status = r.status();
+        let body = axum::body::to_bytes(r.into_body(), 1 << 20).await.expect("body");
+        (status, String::from_utf8_lossy(&body).into_owned())
+    }
+
+    #[tokio::test]
+    async fn healthz_answers_503_while_the_database_cannot_be_written() {
+        let dir = scratch("health");
+        let state = build_state(Settings::new(dir.join("c.db").display().to_string()), "test").await.expect("state");
+        let app = router(state.clone());
+        assert_eq!(health(&app).await.0, StatusCode::OK);
+        let writer = state.coordinator.db().writer();
+        sqlx::query("PRAGMA query_only = ON").execute(writer).await.expect("pragma");
+        let (status, body) = health(&app).await;
+        assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "{body}");
+        assert!(body.contains("\"unhealthy\"") && body.contains("cannot be written"), "{body}");
+        sqlx::query("PRAGMA query_only = OFF").execute(writer).await.expect("pragma");
+        assert_eq!(health(&app).await.0, StatusCode::OK, "healthy again once writes work");
+        state.coordinator.db().close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[tokio::test]
+    async fn a_database_that_cannot_be_written_is_refused_at_start() {
+        let dir = scratch("readonly");
+        let path = dir.join("c.db");
+        let state = build_state(Settings::new(path.display().to_string()), "first").await.expect("state");
+        state.lock.release(state.coordinator.db()).await;
+        state.coordinator.db().close().await;
+        let e = build_state(Settings::new(format!("sqlite://{}?mode=ro", path.display())), "second")
+            .await
+            .expect_err("a read-only database is refused");
+        assert!(e.to_string().contains("cannot be written"), "{e}");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn identical_client_and_worker_tokens_are_refused() {
+        let mut s = Settings::new("x.db");
+        s.client_token = Some(Secret::new("same"));
+        s.worker_token = Some(Secret::new("same"));
+        assert!(s.check().unwrap_err().to_string().contains("are the same"));
+        s.worker_token = Some(Secret::new("other"));
+        assert!(s.check().is_ok());
+        assert_eq!(format!("{:?}", s.client_token), "Some(Secret(***))");
+    }
+}
