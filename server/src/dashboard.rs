@@ -18,8 +18,7 @@
 //!
 //! A calibration's figures are drawn on the blocking pool, at most one drawing per calibration at
 //! a time (later viewers wait for it and take its result), with model runs that stop at the end
-//! of the data, and kept until the calibration changes (a running one's at most every
-//! [`FIGURE_REFRESH_S`] seconds).
+//! of the data, and kept until the calibration changes.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -47,11 +46,12 @@ pub const SESSION_COOKIE: &str = "cryofit_session";
 /// Seconds between refreshes of a page that shows a running calibration.
 const REFRESH_S: u32 = 5;
 
-/// A running calibration's figures are redrawn at most this often, s.
-pub const FIGURE_REFRESH_S: u64 = 10;
-
 /// Posterior draws simulated for the bands of a finished calibration's page.
 const DASHBOARD_BAND_DRAWS: usize = 8;
+
+/// Figure drawings that run at once, over all calibrations (each uses every core for its
+/// posterior-predictive runs).
+static FIGURE_BUILDS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
 
 /// Calibrations whose figures are kept.
 const CACHED_CALIBRATIONS: usize = 16;
@@ -422,21 +422,18 @@ async fn calibration_data(state: &AppState, id: i64) -> Result<CalibrationData, 
     Ok(CalibrationData { calibration, sets, experiments })
 }
 
-/// The figures of a calibration, from the cache when it has not changed since they were drawn
-/// (or, while it runs, when they are younger than [`FIGURE_REFRESH_S`]). At most one drawing per
-/// calibration runs at a time: a viewer that finds one under way waits for it and takes its
-/// figures.
+/// The figures of a calibration, from the cache when it has not changed since they were drawn.
+/// At most one drawing per calibration runs at a time (two over all calibrations): a viewer that
+/// finds one under way waits for it and takes its figures.
 async fn drawn(state: &AppState, data: CalibrationData) -> Result<Arc<Drawn>, Response> {
     let c = &data.calibration;
     let key = format!("{}:{}:{}:{}", c.status.as_str(), c.evaluations, c.failed_evaluations, c.updated);
     let id = c.id;
-    let running = !c.status.is_final();
     let cache = state.figures.clone();
     let fresh = |since: Option<std::time::Instant>| {
         let map = cache.map.lock().ok()?;
         let d = map.get(&id)?;
-        let recent = running && d.at.elapsed() < std::time::Duration::from_secs(FIGURE_REFRESH_S);
-        (d.key == key || recent || since.is_some_and(|t| d.at >= t)).then(|| d.clone())
+        (d.key == key || since.is_some_and(|t| d.at >= t)).then(|| d.clone())
     };
     if let Some(d) = fresh(None) {
         return Ok(d);
@@ -458,6 +455,11 @@ async fn drawn(state: &AppState, data: CalibrationData) -> Result<Arc<Drawn>, Re
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
         end_at_data: true,
     };
+    // and at most two drawings at once over all calibrations
+    let _slot = FIGURE_BUILDS
+        .acquire()
+        .await
+        .map_err(|e| error_page(state, StatusCode::SERVICE_UNAVAILABLE, &e.to_string()))?;
     state.metrics.figures_built();
     let done = tokio::task::spawn_blocking(move || {
         let figures = figures::figures(&data, &fluids, &opts);

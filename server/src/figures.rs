@@ -596,3 +596,59 @@ fn boiling_figure(
         plot: Ok(Plot::Boiling(plots::BoilingCurves { title: full, panels })),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// A calibration of the tiny case lengthened to 1000 s, with data to 8 s.
+    fn data() -> CalibrationData {
+        let case = include_str!("../../tests/fixtures/tiny.toml").replace("end_s = 8.0", "end_s = 1000.0");
+        let experiment = api::Experiment {
+            id: 1,
+            name: "tiny".into(),
+            fluid: "nitrogen".into(),
+            case,
+            data: include_str!("../../tests/fixtures/tiny-data.csv").into(),
+            created: 0,
+        };
+        let spec = json!({
+            "name": "t", "seed": 1, "experiments": [1],
+            "parameters": [{"name": "Gwsc", "lower": 0.5, "upper": 2.0}],
+            "weights": {"wall_temperature_k": {"weight": 1.0, "sigma": 1.0}},
+            "stages": [{"algorithm": "cmaes", "budget": 6}]
+        });
+        let calibration = api::Calibration {
+            id: 1,
+            name: "t".into(),
+            status: api::CalibrationStatus::Completed,
+            evaluations: 0,
+            failed_evaluations: 0,
+            budget: 6,
+            stage: 0,
+            best_cost: None,
+            best_parameters: None,
+            experiments: vec![1],
+            solver_version: api::SOLVER_VERSION.into(),
+            fluid_hashes: BTreeMap::new(),
+            error: None,
+            spec,
+            stages: Vec::new(),
+            created: 0,
+            updated: 0,
+        };
+        CalibrationData { calibration, sets: Vec::new(), experiments: vec![experiment] }
+    }
+
+    #[test]
+    fn dashboard_runs_end_at_the_data_and_reports_run_the_whole_case() {
+        let d = data();
+        let ctx = Context::new(&d);
+        let fluids = crate::embedded_fluids();
+        let dashboard = ctx.experiments(&fluids, true).expect("experiments");
+        assert_eq!(dashboard[0].model.stop_s(), 8.0, "the data end at 8 s");
+        let report = ctx.experiments(&fluids, false).expect("experiments");
+        assert_eq!(report[0].model.stop_s(), 1000.0, "the case runs 1000 s");
+    }
+}

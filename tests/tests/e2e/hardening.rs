@@ -126,6 +126,24 @@ fn limits_are_set_at_serve_and_shown_in_the_openapi_document() {
 }
 
 #[test]
+fn a_body_over_the_limit_without_a_length_gets_a_413_that_reads_well() {
+    use std::io::Read as _;
+    let dir = scratch("chunked");
+    let server = Server::start(&dir, "serve", "127.0.0.1:0", &dir.join("c.db"), &[("CRYOFIT_BODY_LIMIT", "2048")]);
+    // a body of unknown length (chunked): the limit is found while reading it
+    let body = reqwest::blocking::Body::new(std::io::repeat(b' ').take(10_000));
+    let r = http()
+        .post(format!("{}/api/v1/experiments", server.url))
+        .header("Content-Type", "application/json")
+        .body(body)
+        .send()
+        .expect("POST");
+    assert_eq!(r.status().as_u16(), 413);
+    let v: Value = r.json().expect("JSON error");
+    assert_eq!(v["error"]["message"], "the body exceeds the limit of 2048 bytes", "{v}");
+}
+
+#[test]
 fn a_second_coordinator_on_the_same_database_exits_naming_the_first() {
     let dir = scratch("second");
     let db = dir.join("c.db");
