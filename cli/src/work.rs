@@ -50,7 +50,7 @@ pub fn run(args: &WorkArgs) -> Result<()> {
         settings.exit_when_idle = Some(Duration::from_secs_f64(s));
     }
     let d = args.drain_timeout;
-    if !(d.is_finite() && d >= 0.0 && d <= 86_400.0) {
+    if !(d.is_finite() && (0.0..=86_400.0).contains(&d)) {
         bail!("--drain-timeout {d}: give seconds in [0, 86400]");
     }
     settings.drain_timeout = Duration::from_secs_f64(d);

@@ -183,8 +183,11 @@ fn identical_tokens_and_an_unwritable_database_are_refused_at_start() {
     assert!(p.logs().contains("cannot be written"), "{}", p.logs());
 }
 
-/// Reads one HTTP/1.1 request: (method, path, headers lower-cased, body); `None` at the end.
-fn read_request(r: &mut BufReader<TcpStream>) -> Option<(String, String, Vec<(String, String)>, Vec<u8>)> {
+/// An HTTP/1.1 request: method, path, headers (names lower-cased), body.
+type HttpRequest = (String, String, Vec<(String, String)>, Vec<u8>);
+
+/// Reads one HTTP/1.1 request; `None` at the end of the connection.
+fn read_request(r: &mut BufReader<TcpStream>) -> Option<HttpRequest> {
     let mut line = String::new();
     if r.read_line(&mut line).ok()? == 0 {
         return None;
