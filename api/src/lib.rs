@@ -502,13 +502,64 @@ pub struct ResultResponse {
     pub counted: bool,
 }
 
-/// `GET /healthz`.
+/// `GET /healthz`: 200 with `status: "ok"`, or 503 with `status: "unhealthy"` and the reason (for
+/// example a database that cannot be written).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Health {
-    /// `ok`.
+    /// `ok` or `unhealthy`.
     pub status: String,
     /// Server version.
     pub version: String,
+    /// Why the coordinator is unhealthy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+}
+
+/// Server-wide ceilings on what one request can size, set at `cryofit serve` (flags named beside
+/// each field) and listed in the OpenAPI document. A request over one of them is refused with 422
+/// naming the field and the limit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Evaluations of one calibration, all stages together (`--max-budget`).
+    pub max_budget: u64,
+    /// Population, trajectories, walkers, grid points, levels, restarts or `keep` of one stage
+    /// (`--max-stage-size`).
+    pub max_stage_size: u64,
+    /// Estimated size of one calibration's optimiser state as stored (JSON), bytes
+    /// (`--max-state-bytes`); the state is written with every result.
+    pub max_state_bytes: u64,
+    /// Values one evaluation records (probes at every station and whole-line profiles, up to
+    /// the end of the data: `end / output_interval_s × stations × 10` and
+    /// `end / profile_interval_s × cells × 8`) (`--max-output-points`).
+    pub max_output_points: u64,
+    /// Largest `max_evaluation_s` of a calibration, s (`--max-evaluation-s`).
+    pub max_evaluation_s: f64,
+}
+
+impl Limits {
+    /// Default `--max-budget`.
+    pub const DEFAULT_MAX_BUDGET: u64 = 1_000_000;
+    /// Default `--max-stage-size`.
+    pub const DEFAULT_MAX_STAGE_SIZE: u64 = 10_000;
+    /// Default `--max-state-bytes` (32 MiB).
+    pub const DEFAULT_MAX_STATE_BYTES: u64 = 32 * 1024 * 1024;
+    /// Default `--max-output-points`.
+    pub const DEFAULT_MAX_OUTPUT_POINTS: u64 = 250_000;
+    /// Default `--max-evaluation-s`.
+    pub const DEFAULT_MAX_EVALUATION_S: f64 = 600.0;
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_budget: Self::DEFAULT_MAX_BUDGET,
+            max_stage_size: Self::DEFAULT_MAX_STAGE_SIZE,
+            max_state_bytes: Self::DEFAULT_MAX_STATE_BYTES,
+            max_output_points: Self::DEFAULT_MAX_OUTPUT_POINTS,
+            max_evaluation_s: Self::DEFAULT_MAX_EVALUATION_S,
+        }
+    }
 }
 
 #[cfg(test)]

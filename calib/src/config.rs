@@ -382,6 +382,9 @@ impl CalibrationSpec {
         for (k, s) in self.stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
         }
+        if self.stages.iter().try_fold(0usize, |t, s| t.checked_add(s.budget)).is_none() {
+            return Err(format!("stages: the budgets add up to more than {} evaluations; lower them", usize::MAX));
+        }
         if !(self.max_evaluation_s.is_finite() && self.max_evaluation_s > 0.0) {
             return Err(format!("max_evaluation_s = {}: must be a finite number > 0", self.max_evaluation_s));
         }
@@ -423,9 +426,10 @@ impl CalibrationSpec {
         )
     }
 
-    /// Total evaluation budget of all stages (each evaluation runs every experiment).
+    /// Total evaluation budget of all stages (each evaluation runs every experiment; saturates
+    /// where [`CalibrationSpec::validate`] refuses the sum).
     pub fn budget(&self) -> usize {
-        self.stages.iter().map(|s| s.budget).sum()
+        self.stages.iter().fold(0usize, |t, s| t.saturating_add(s.budget))
     }
 }
 
@@ -514,5 +518,16 @@ population = 8
         )
         .unwrap();
         assert_eq!(c.stages[0].stall_generations, Some(20));
+    }
+
+    #[test]
+    fn budgets_that_sum_past_the_integer_range_are_refused() {
+        let stage = "[[stages]]\nalgorithm = \"cmaes\"\nbudget = 9000000000000000000\n";
+        let text = GOOD.replace("[[stages]]", &format!("{stage}\n{stage}\n{stage}\n[[stages]]"));
+        let e = CalibrationSpec::from_toml(&text, "c.toml").unwrap_err();
+        assert!(e.to_string().contains("stages: the budgets add up to more than"), "{e}");
+        let mut c = CalibrationSpec::from_toml(GOOD, "c.toml").unwrap();
+        c.stages = vec![StageSpec::new(AlgorithmName::Cmaes, usize::MAX), StageSpec::new(AlgorithmName::Cmaes, 5)];
+        assert_eq!(c.budget(), usize::MAX, "the sum saturates");
     }
 }

@@ -309,9 +309,9 @@ impl Pipeline {
         (self.evaluations, self.failed)
     }
 
-    /// Total budget of all stages.
+    /// Total budget of all stages (saturating: a sum past `usize::MAX` reads as `usize::MAX`).
     pub fn budget(&self) -> usize {
-        self.stages.iter().map(|s| s.budget).sum()
+        self.stages.iter().fold(0usize, |t, s| t.saturating_add(s.budget))
     }
 
     /// Best evaluation so far (full unit coordinates).

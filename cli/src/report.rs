@@ -78,6 +78,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         band_draws: args.band_draws,
         seed: args.seed,
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        end_at_data: false,
     };
     let fluids = crate::serve::fluid_loader();
     let figs = figures::figures(&data, &fluids, &opts);

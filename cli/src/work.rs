@@ -1,4 +1,5 @@
-//! `cryofit work --coordinator URL [--slots N] [--exit-when-idle SECS]`: runs a worker.
+//! `cryofit work --coordinator URL [--slots N] [--exit-when-idle SECS] [--drain-timeout SECS]
+//! [--cache-mb MIB]`: runs a worker.
 
 use std::time::Duration;
 
@@ -18,6 +19,13 @@ pub struct WorkArgs {
     /// Exit after this many seconds without jobs.
     #[arg(long, value_name = "SECS")]
     exit_when_idle: Option<f64>,
+    /// On SIGTERM, seconds the running simulations may take to finish before the worker exits
+    /// without them (their leases expire and the jobs are handed out again).
+    #[arg(long, value_name = "SECS", env = "CRYOFIT_DRAIN_TIMEOUT_S", default_value_t = 60.0)]
+    drain_timeout: f64,
+    /// Memory for prepared experiments, MiB (least recently used first out).
+    #[arg(long, value_name = "MIB", default_value_t = 64)]
+    cache_mb: usize,
 }
 
 /// The token of `CRYOFIT_TOKEN`, if set.
@@ -41,6 +49,12 @@ pub fn run(args: &WorkArgs) -> Result<()> {
         }
         settings.exit_when_idle = Some(Duration::from_secs_f64(s));
     }
+    let d = args.drain_timeout;
+    if !(d.is_finite() && (0.0..=86_400.0).contains(&d)) {
+        bail!("--drain-timeout {d}: give seconds in [0, 86400]");
+    }
+    settings.drain_timeout = Duration::from_secs_f64(d);
+    settings.cache_bytes = args.cache_mb.saturating_mul(1024 * 1024);
     let client = Client::new(&args.coordinator, token()).with_context(|| "--coordinator".to_string())?;
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
     let summary = rt.block_on(cryofit_worker::run(
@@ -48,7 +62,10 @@ pub fn run(args: &WorkArgs) -> Result<()> {
         settings,
         crate::serve::fluid_loader(),
         cryofit_worker::shutdown_signal(),
-    ))?;
+    ));
+    // an evaluation abandoned at the drain timeout keeps its thread busy: do not wait for it
+    rt.shutdown_timeout(Duration::from_millis(500));
+    let summary = summary?;
     eprintln!(
         "worker done: {} results counted ({} failed evaluations), {} stale",
         summary.counted, summary.failed, summary.stale

@@ -99,6 +99,8 @@ pub struct Coordinator {
     settings: CoordinatorSettings,
     running: Mutex<BTreeMap<i64, Running>>,
     metrics: Arc<Metrics>,
+    /// Claims so far: rotates which calibration a claim serves first.
+    turn: std::sync::atomic::AtomicUsize,
 }
 
 /// A validated calibration ready to store.
@@ -231,11 +233,11 @@ impl Coordinator {
                     tracing::error!(calibration = id, error = %e, "cannot resume calibration");
                     let mut tx = db.begin().await?;
                     db::fail_calibration(&mut tx, id, &e).await?;
-                    tx.commit().await?;
+                    db.commit(tx).await?;
                 }
             }
         }
-        Ok(Self { db, settings, running: Mutex::new(running), metrics })
+        Ok(Self { db, settings, running: Mutex::new(running), metrics, turn: Default::default() })
     }
 
     /// The database.
@@ -315,7 +317,7 @@ impl Coordinator {
                 name: &c.request.name,
                 spec_json: &spec_json,
                 experiment_ids_json: &ids_json,
-                budget: c.pipeline.budget() as i64,
+                budget: i64::try_from(c.pipeline.budget()).unwrap_or(i64::MAX),
                 state_json: &state_json,
                 solver_version: api::SOLVER_VERSION,
                 fluid_hashes_json: &hashes_json,
@@ -333,7 +335,7 @@ impl Coordinator {
         Self::top_up(&mut tx, id, &mut r, target, target).await?;
         let (status, error) = Self::status_of(&r.pipeline);
         db::update_progress(&mut tx, id, &progress(&r.pipeline, status, error)?).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         if status == "running" {
             running.insert(id, r);
         }
@@ -374,13 +376,18 @@ impl Coordinator {
         }
         let prefix = format!("{:016x}", rand::thread_rng().r#gen::<u64>());
         let lease_ms = self.settings.lease.as_millis() as i64;
+        if !eligible.is_empty() {
+            let turn = self.turn.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let n = eligible.len();
+            eligible.rotate_left(turn % n);
+        }
         let claimed = if eligible.is_empty() || req.max_jobs == 0 {
             Vec::new()
         } else {
             db::claim(&mut tx, &eligible, i64::from(req.max_jobs.min(1000)), &prefix, &req.worker, now_ms() + lease_ms)
                 .await?
         };
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         for (id, r) in changed {
             running.insert(id, r);
         }
@@ -427,7 +434,7 @@ impl Coordinator {
                 }
             }
         };
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         out
     }
 
@@ -540,7 +547,7 @@ impl Coordinator {
         }
         let told = Self::finish_sets(&mut tx, &sets).await?;
         let changed = self.tell(&mut tx, &running, told).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         Self::apply(&mut running, changed);
         drop(running);
         for (r, o) in reports.iter().zip(&out) {
@@ -595,6 +602,16 @@ impl Coordinator {
                     }
                     _ => {}
                 }
+            }
+            // two finite costs can still sum to infinity: that set fails, it is not told as a cost
+            if let Outcome::Ok { cost } = outcome
+                && !cost.is_finite()
+            {
+                outcome = Outcome::Failed {
+                    reason: format!(
+                        "the experiments' costs sum to {cost} (not a finite number); check the weights and sigmas"
+                    ),
+                };
             }
             let first = parts[0];
             told.entry(first.calibration_id)
@@ -683,7 +700,7 @@ impl Coordinator {
         db::record_results(&mut tx, &failed).await?;
         let told = Self::finish_sets(&mut tx, &sets).await?;
         let changed = self.tell(&mut tx, &running, told).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         Self::apply(&mut running, changed);
         if !expired.is_empty() {
             self.metrics.expired(expired.len());
@@ -697,7 +714,7 @@ impl Coordinator {
         let mut running = self.running.lock().await;
         let mut tx = self.db.begin().await?;
         let before = db::cancel_calibration(&mut tx, id).await?;
-        tx.commit().await?;
+        self.db.commit(tx).await?;
         running.remove(&id);
         Ok(before)
     }
@@ -725,4 +742,117 @@ fn refusal(version: &str, hashes: &BTreeMap<String, String>, req: &api::ClaimReq
         }
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    const CASE: &str = include_str!("../../tests/fixtures/tiny.toml");
+    const DATA: &str = include_str!("../../tests/fixtures/tiny-data.csv");
+
+    async fn coordinator(tag: &str) -> (Coordinator, std::path::PathBuf) {
+        let dir = std::env::temp_dir().join(format!("cryofit-coord-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        let db = Db::open(&dir.join("c.db").display().to_string()).await.expect("open");
+        let c = Coordinator::load(db, CoordinatorSettings::default(), Arc::default()).await.expect("load");
+        (c, dir)
+    }
+
+    async fn experiment(c: &Coordinator) -> i64 {
+        let mut tx = c.db.begin().await.expect("begin");
+        let id = db::insert_experiment(&mut tx, "tiny", "nitrogen", CASE, DATA).await.expect("insert");
+        c.db.commit(tx).await.expect("commit");
+        id
+    }
+
+    async fn calibration(c: &Coordinator, experiments: &[i64]) -> i64 {
+        let req: api::CreateCalibration = serde_json::from_value(json!({
+            "name": "t",
+            "seed": 3,
+            "experiments": experiments,
+            "parameters": [{"name": "Gwsc", "lower": 0.5, "upper": 2.0}],
+            "weights": {"wall_temperature_k": {"weight": 1.0, "sigma": 1.0}},
+            "stages": [{"algorithm": "cmaes", "budget": 60, "population": 6}]
+        }))
+        .expect("request");
+        let mut rows = Vec::new();
+        for &e in experiments {
+            rows.push(db::experiment(c.db.reader(), e).await.expect("experiment"));
+        }
+        let p = crate::validate::calibration(&req, &rows, &crate::embedded_fluids(), &api::Limits::default())
+            .expect("valid");
+        c.create(NewCalibration { request: req, pipeline: p.pipeline, fluid_hashes: p.fluid_hashes })
+            .await
+            .expect("created")
+    }
+
+    fn claim(max_jobs: u32) -> api::ClaimRequest {
+        let (_, hash) = crate::embedded_fluids()("nitrogen").expect("nitrogen");
+        api::ClaimRequest {
+            worker: "w".into(),
+            slots: 1,
+            max_jobs,
+            solver_version: api::SOLVER_VERSION.into(),
+            fluid_hashes: [("nitrogen".to_string(), hash)].into(),
+        }
+    }
+
+    #[tokio::test]
+    async fn claims_take_turns_across_running_calibrations() {
+        let (c, dir) = coordinator("fair").await;
+        let e = experiment(&c).await;
+        let first = calibration(&c, &[e]).await;
+        let second = calibration(&c, &[e]).await;
+        let mut got: BTreeMap<i64, usize> = BTreeMap::new();
+        // a one-slot worker claiming one job at a time, holding them all: before, the oldest
+        // calibration's six queued jobs all went first
+        for _ in 0..6 {
+            for j in c.claim(&claim(1)).await.expect("claim").jobs {
+                *got.entry(j.calibration_id).or_default() += 1;
+            }
+        }
+        assert_eq!((got.get(&first), got.get(&second)), (Some(&3), Some(&3)), "{got:?}");
+        // a larger claim interleaves: the second job of each comes after the first of each
+        let jobs = c.claim(&claim(2)).await.expect("claim").jobs;
+        let ids: Vec<i64> = jobs.iter().map(|j| j.calibration_id).collect();
+        assert!(ids.contains(&first) && ids.contains(&second), "{ids:?}");
+        c.db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[tokio::test]
+    async fn costs_that_sum_to_infinity_fail_their_parameter_set() {
+        let (c, dir) = coordinator("infinite").await;
+        let (e1, e2) = (experiment(&c).await, experiment(&c).await);
+        let id = calibration(&c, &[e1, e2]).await;
+        let jobs = c.claim(&claim(2)).await.expect("claim").jobs;
+        assert_eq!(jobs.len(), 2);
+        assert_eq!(jobs[0].parameter_set_id, jobs[1].parameter_set_id, "both experiments of one set");
+        let outcome = api::JobOutcome::Ok { cost: 1e308 };
+        let items: Vec<api::JobResult> = jobs
+            .iter()
+            .map(|j| api::JobResult {
+                job_id: j.id,
+                lease_id: j.lease_id.clone(),
+                outcome: outcome.clone(),
+                duration_s: Some(0.1),
+                breakdown: None,
+                worker: Some("w".into()),
+            })
+            .collect();
+        let reports: Vec<Report<'_>> = items.iter().map(Report::batched).collect();
+        let out = c.results(&reports).await.expect("recorded, not an internal error");
+        assert!(out.iter().all(|r| r.counted), "{out:?}");
+        let sets = db::parameter_sets_page(c.db.reader(), id, None, None, 100, 0).await.expect("sets");
+        let set = sets.iter().find(|s| s.id == jobs[0].parameter_set_id).expect("the set");
+        assert_eq!(set.status, "failed", "{set:?}");
+        assert!(set.reason.as_deref().is_some_and(|r| r.contains("sum to inf")), "{set:?}");
+        let row = db::calibration(c.db.reader(), id).await.expect("calibration");
+        assert_eq!((row.status.as_str(), row.evaluations, row.failed_evaluations), ("running", 1, 1));
+        c.db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
 }

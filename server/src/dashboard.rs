@@ -2,7 +2,9 @@
 //!
 //! - `/`: the calibrations with status, progress and best cost (or, when tokens are configured
 //!   and the browser has not signed in, the sign-in form: `POST /signin` takes the client token
-//!   and sets an HttpOnly cookie; `POST /signout` clears it);
+//!   and sets an HttpOnly cookie holding a random session id (never the token) that expires
+//!   after [`crate::Settings::session_ttl`] and is stored server-side as its SHA-256;
+//!   `POST /signout` revokes the session and clears the cookie);
 //! - `/calibrations/{id}`: one calibration, its stages and its figures as inline SVG (the
 //!   [`crate::figures`] set), refreshed every few seconds while it runs, with CSV downloads and
 //!   each figure as SVG or PNG;
@@ -11,19 +13,25 @@
 //!
 //! Every page but `/` needs the cookie when tokens are configured (401 with the sign-in form
 //! otherwise, never a redirect). Every text that comes from storage is escaped. The only script
-//! is a few lines that fetch the page again and swap its live part while a calibration runs.
+//! (`/dashboard.js`, a few lines that fetch the page again and swap its live part while a
+//! calibration runs) is served as a file, so the Content-Security-Policy allows no inline script.
+//!
+//! A calibration's figures are drawn on the blocking pool, at most one drawing per calibration at
+//! a time (later viewers wait for it and take its result), with model runs that stop at the end
+//! of the data, and kept until the calibration changes.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::sync::{Arc, Mutex};
 
+use axum::Form;
 use axum::Router;
-use axum::body::Bytes;
 use axum::extract::{Path, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::{get, post};
+use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
 use cryofit_api as api;
 use cryofit_plots::{Figure, Plot, escape_html as esc};
 
@@ -32,7 +40,7 @@ use crate::db::{self, DbError};
 use crate::figures::{self, CalibrationData, FigureOptions};
 use crate::routes::{ApiError, calibration_view, csv_response, parameter_sets_csv, results_csv};
 
-/// Name of the session cookie (its value is the client token, hex-encoded).
+/// Name of the session cookie (its value is a random session id, 64 hex digits).
 pub const SESSION_COOKIE: &str = "cryofit_session";
 
 /// Seconds between refreshes of a page that shows a running calibration.
@@ -41,6 +49,10 @@ const REFRESH_S: u32 = 5;
 /// Posterior draws simulated for the bands of a finished calibration's page.
 const DASHBOARD_BAND_DRAWS: usize = 8;
 
+/// Figure drawings that run at once, over all calibrations (each uses every core for its
+/// posterior-predictive runs).
+static FIGURE_BUILDS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
+
 /// Calibrations whose figures are kept.
 const CACHED_CALIBRATIONS: usize = 16;
 
@@ -48,13 +60,16 @@ const CACHED_CALIBRATIONS: usize = 16;
 #[derive(Debug)]
 struct Drawn {
     key: String,
+    at: std::time::Instant,
     figures: Vec<(Figure, Result<String, String>)>,
 }
 
-/// The figures of recently viewed calibrations, redrawn when the calibration has changed.
+/// The figures of recently viewed calibrations, redrawn when the calibration has changed, and
+/// the drawings under way (one per calibration).
 #[derive(Debug, Default)]
 pub struct FigureCache {
     map: Mutex<HashMap<i64, Arc<Drawn>>>,
+    building: Mutex<HashMap<i64, Arc<tokio::sync::Mutex<()>>>>,
 }
 
 pub(crate) fn router(state: AppState) -> Router<AppState> {
@@ -69,7 +84,16 @@ pub(crate) fn router(state: AppState) -> Router<AppState> {
         .route("/experiments/{id}/case.toml", get(experiment_case))
         .route("/workers", get(workers_page))
         .layer(middleware::from_fn_with_state(state, require_session));
-    Router::new().route("/", get(home)).route("/signin", post(sign_in)).route("/signout", post(sign_out)).merge(pages)
+    Router::new()
+        .route("/", get(home))
+        .route("/signin", post(sign_in))
+        .route("/signout", post(sign_out))
+        .route("/dashboard.js", get(script))
+        .merge(pages)
+}
+
+async fn script() -> Response {
+    ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], REFRESH_SCRIPT).into_response()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -79,39 +103,38 @@ fn secured(state: &AppState) -> bool {
     state.settings.client_token.is_some() || state.settings.worker_token.is_some()
 }
 
-fn hex(s: &str) -> String {
-    s.bytes().map(|b| format!("{b:02x}")).collect()
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn unhex(s: &str) -> Option<String> {
-    if !s.len().is_multiple_of(2) {
+/// SHA-256 of a session id, hex: what the database holds.
+fn digest(session: &str) -> String {
+    use sha2::Digest as _;
+    hex(&sha2::Sha256::digest(session.as_bytes()))
+}
+
+/// The session id of the cookie, if it is one that is stored and not expired.
+async fn session(state: &AppState, headers: &HeaderMap) -> Option<String> {
+    let id = CookieJar::from_headers(headers).get(SESSION_COOKIE)?.value().to_string();
+    if id.len() != 64 || !id.bytes().all(|b| b.is_ascii_hexdigit()) {
         return None;
     }
-    let bytes: Option<Vec<u8>> =
-        (0..s.len()).step_by(2).map(|i| u8::from_str_radix(s.get(i..i + 2)?, 16).ok()).collect();
-    String::from_utf8(bytes?).ok()
-}
-
-fn cookie<'a>(headers: &'a HeaderMap, name: &str) -> Option<&'a str> {
-    headers
-        .get_all(header::COOKIE)
-        .iter()
-        .filter_map(|v| v.to_str().ok())
-        .flat_map(|v| v.split(';'))
-        .filter_map(|kv| kv.trim().split_once('='))
-        .find_map(|(k, v)| (k == name).then_some(v))
-}
-
-fn signed_in(state: &AppState, headers: &HeaderMap) -> bool {
-    if !secured(state) {
-        return true;
+    match db::session_valid(state.coordinator.db().reader(), &digest(&id), db::now_ms()).await {
+        Ok(true) => Some(id),
+        Ok(false) => None,
+        Err(e) => {
+            tracing::error!(error = %e, "reading a session");
+            None
+        }
     }
-    let Some(token) = &state.settings.client_token else { return false };
-    cookie(headers, SESSION_COOKIE).and_then(unhex).is_some_and(|t| token.matches(&t))
+}
+
+async fn signed_in(state: &AppState, headers: &HeaderMap) -> bool {
+    !secured(state) || session(state, headers).await.is_some()
 }
 
 async fn require_session(State(state): State<AppState>, req: Request, next: Next) -> Response {
-    if signed_in(&state, req.headers()) {
+    if signed_in(&state, req.headers()).await {
         return next.run(req).await;
     }
     let next_path = req.uri().path().to_string();
@@ -136,79 +159,90 @@ fn sign_in_form(note: Option<&str>, next_path: &str) -> String {
     s
 }
 
-/// Decodes `application/x-www-form-urlencoded` text into (name, value) pairs.
-fn form_fields(body: &[u8]) -> Vec<(String, String)> {
-    fn decode(s: &str) -> String {
-        let b = s.as_bytes();
-        let mut out = Vec::with_capacity(b.len());
-        let mut i = 0;
-        while i < b.len() {
-            match b[i] {
-                b'+' => out.push(b' '),
-                b'%' => match s.get(i + 1..i + 3).filter(|h| h.bytes().all(|c| c.is_ascii_hexdigit())) {
-                    Some(h) => {
-                        out.push(u8::from_str_radix(h, 16).unwrap_or(b'?'));
-                        i += 2;
-                    }
-                    None => out.push(b'%'),
-                },
-                c => out.push(c),
-            }
-            i += 1;
-        }
-        String::from_utf8_lossy(&out).into_owned()
-    }
-    String::from_utf8_lossy(body)
-        .split('&')
-        .filter(|kv| !kv.is_empty())
-        .map(|kv| {
-            let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
-            (decode(k), decode(v))
-        })
-        .collect()
-}
-
-/// Where to go after signing in: a local path, `/` otherwise.
+/// Where to go after signing in: a local path, `/` otherwise. Whitespace and control characters
+/// are refused (browsers drop a TAB or a newline from a URL, which would turn `/\t/host` into
+/// `//host`), as are backslashes and `//` (another host).
 fn local_path(next: Option<&str>) -> String {
     match next {
-        Some(p) if p.starts_with('/') && !p.starts_with("//") && !p.contains(['\\', '\r', '\n']) => p.to_string(),
+        Some(p)
+            if p.starts_with('/')
+                && !p.starts_with("//")
+                && !p.chars().any(|c| c.is_control() || c.is_whitespace() || c == '\\') =>
+        {
+            p.to_string()
+        }
         _ => "/".into(),
     }
 }
 
-fn see_other(location: &str, cookie: Option<String>) -> Response {
-    let mut r = StatusCode::SEE_OTHER.into_response();
+fn see_other(location: &str, jar: CookieJar) -> Response {
+    let mut r = (jar, StatusCode::SEE_OTHER).into_response();
     if let Ok(v) = HeaderValue::from_str(location) {
         r.headers_mut().insert(header::LOCATION, v);
-    }
-    if let Some(c) = cookie.and_then(|c| HeaderValue::from_str(&c).ok()) {
-        r.headers_mut().insert(header::SET_COOKIE, c);
     }
     r
 }
 
-async fn sign_in(State(state): State<AppState>, body: Bytes) -> Response {
-    let fields = form_fields(&body);
-    let get = |name: &str| fields.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str());
-    let next = local_path(get("next"));
-    if !secured(&state) {
-        return see_other(&next, None);
-    }
-    let token = get("token").unwrap_or("").trim();
-    match &state.settings.client_token {
-        Some(t) if !token.is_empty() && t.matches(token) => {
-            let c = format!("{SESSION_COOKIE}={}; Path=/; HttpOnly; SameSite=Strict", hex(token));
-            see_other(&next, Some(c))
-        }
-        _ => {
-            let body = sign_in_form(Some("That is not the client token (CRYOFIT_CLIENT_TOKEN)."), &next);
-            (StatusCode::UNAUTHORIZED, Html(page("Sign in", &body, false, true))).into_response()
-        }
-    }
+/// The sign-in form's fields.
+#[derive(Debug, serde::Deserialize)]
+struct SignIn {
+    #[serde(default)]
+    token: String,
+    #[serde(default)]
+    next: Option<String>,
 }
 
-async fn sign_out() -> Response {
-    see_other("/", Some(format!("{SESSION_COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")))
+fn session_cookie(state: &AppState, value: String, max_age: cookie::time::Duration) -> Cookie<'static> {
+    Cookie::build((SESSION_COOKIE, value))
+        .path("/")
+        .http_only(true)
+        .same_site(SameSite::Strict)
+        .secure(state.settings.secure_cookies)
+        .max_age(max_age)
+        .build()
+}
+
+async fn sign_in(State(state): State<AppState>, jar: CookieJar, Form(form): Form<SignIn>) -> Response {
+    let next = local_path(form.next.as_deref());
+    if !secured(&state) {
+        return see_other(&next, jar);
+    }
+    let token = form.token.trim();
+    let valid = !token.is_empty() && state.settings.client_token.as_ref().is_some_and(|t| t.matches(token));
+    if !valid {
+        let body = sign_in_form(Some("That is not the client token (CRYOFIT_CLIENT_TOKEN)."), &next);
+        return (StatusCode::UNAUTHORIZED, Html(page("Sign in", &body, false, true))).into_response();
+    }
+    let id = hex(&rand::random::<[u8; 32]>());
+    let now = db::now_ms();
+    let ttl = state.settings.session_ttl;
+    let db = state.coordinator.db();
+    let stored = async {
+        let mut tx = db.begin().await?;
+        db::delete_expired_sessions(&mut tx, now).await?;
+        db::insert_session(&mut tx, &digest(&id), now, now + ttl.as_millis() as i64).await?;
+        db.commit(tx).await
+    };
+    if let Err(e) = stored.await {
+        return db_error(&state, e);
+    }
+    let max_age = cookie::time::Duration::seconds(i64::try_from(ttl.as_secs()).unwrap_or(i64::MAX));
+    see_other(&next, jar.add(session_cookie(&state, id, max_age)))
+}
+
+async fn sign_out(State(state): State<AppState>, jar: CookieJar) -> Response {
+    if let Some(id) = jar.get(SESSION_COOKIE).map(|c| c.value().to_string()) {
+        let db = state.coordinator.db();
+        let done = async {
+            let mut tx = db.begin().await?;
+            db::delete_session(&mut tx, &digest(&id)).await?;
+            db.commit(tx).await
+        };
+        if let Err(e) = done.await {
+            return db_error(&state, e);
+        }
+    }
+    see_other("/", jar.remove(session_cookie(&state, String::new(), cookie::time::Duration::ZERO)))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -225,12 +259,13 @@ td.num{text-align:right;font-variant-numeric:tabular-nums}\
 figure{margin:1.5em 0;background:#fff;border:1px solid #ddd;padding:.5em}figure svg{max-width:100%;height:auto}\
 .note{color:#8a5a00}pre{background:#fff;border:1px solid #ddd;padding:.6em;overflow:auto;max-height:30em}";
 
-/// Fetches the page again every few seconds and swaps in its live part while it asks for it.
-const REFRESH_SCRIPT: &str = "<script>(function tick(){var l=document.getElementById('live');\
+/// `/dashboard.js`: fetches the page again every few seconds and swaps in its live part while it
+/// asks for it.
+const REFRESH_SCRIPT: &str = "(function tick(){var l=document.getElementById('live');\
 if(!l||!l.dataset.refresh)return;setTimeout(function(){fetch(location.href,{credentials:'same-origin'})\
 .then(function(r){return r.ok?r.text():null}).then(function(t){if(!t){tick();return}\
 var n=new DOMParser().parseFromString(t,'text/html').getElementById('live');if(n){l.replaceWith(n)}tick()})\
-.catch(function(){tick()})},1000*Number(l.dataset.refresh))})();</script>";
+.catch(function(){tick()})},1000*Number(l.dataset.refresh))})();\n";
 
 fn page(title: &str, body: &str, refresh: bool, secured: bool) -> String {
     let mut s = format!(
@@ -244,7 +279,10 @@ fn page(title: &str, body: &str, refresh: bool, secured: bool) -> String {
         s.push_str("<form method=\"post\" action=\"/signout\"><button type=\"submit\">Sign out</button></form>");
     }
     let live = if refresh { format!(" data-refresh=\"{REFRESH_S}\"") } else { String::new() };
-    let _ = write!(s, "</header>\n<main id=\"live\"{live}>\n{body}\n</main>\n{REFRESH_SCRIPT}\n</body></html>\n");
+    let _ = write!(
+        s,
+        "</header>\n<main id=\"live\"{live}>\n{body}\n</main>\n<script src=\"/dashboard.js\"></script>\n</body></html>\n"
+    );
     s
 }
 
@@ -304,7 +342,7 @@ fn status_badge(s: &str) -> String {
 // calibrations
 
 async fn home(State(state): State<AppState>, headers: HeaderMap) -> Response {
-    if !signed_in(&state, &headers) {
+    if !signed_in(&state, &headers).await {
         return Html(page("Sign in", &sign_in_form(None, "/"), false, true)).into_response();
     }
     let pool = state.coordinator.db().reader();
@@ -385,23 +423,44 @@ async fn calibration_data(state: &AppState, id: i64) -> Result<CalibrationData, 
 }
 
 /// The figures of a calibration, from the cache when it has not changed since they were drawn.
+/// At most one drawing per calibration runs at a time (two over all calibrations): a viewer that
+/// finds one under way waits for it and takes its figures.
 async fn drawn(state: &AppState, data: CalibrationData) -> Result<Arc<Drawn>, Response> {
     let c = &data.calibration;
     let key = format!("{}:{}:{}:{}", c.status.as_str(), c.evaluations, c.failed_evaluations, c.updated);
     let id = c.id;
     let cache = state.figures.clone();
-    if let Ok(map) = cache.map.lock()
-        && let Some(d) = map.get(&id)
-        && d.key == key
-    {
-        return Ok(d.clone());
+    let fresh = |since: Option<std::time::Instant>| {
+        let map = cache.map.lock().ok()?;
+        let d = map.get(&id)?;
+        (d.key == key || since.is_some_and(|t| d.at >= t)).then(|| d.clone())
+    };
+    if let Some(d) = fresh(None) {
+        return Ok(d);
+    }
+    let gate = {
+        let mut b = cache.building.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        b.entry(id).or_default().clone()
+    };
+    let waiting_since = std::time::Instant::now();
+    let _turn = gate.lock().await;
+    // a drawing that finished while this viewer waited is as new as this viewer's data
+    if let Some(d) = fresh(Some(waiting_since)) {
+        return Ok(d);
     }
     let fluids = state.settings.fluids.clone();
     let opts = FigureOptions {
         band_draws: if c.status == api::CalibrationStatus::Completed { DASHBOARD_BAND_DRAWS } else { 0 },
         seed: 0,
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        end_at_data: true,
     };
+    // and at most two drawings at once over all calibrations
+    let _slot = FIGURE_BUILDS
+        .acquire()
+        .await
+        .map_err(|e| error_page(state, StatusCode::SERVICE_UNAVAILABLE, &e.to_string()))?;
+    state.metrics.figures_built();
     let done = tokio::task::spawn_blocking(move || {
         let figures = figures::figures(&data, &fluids, &opts);
         let figures = figures
@@ -414,7 +473,7 @@ async fn drawn(state: &AppState, data: CalibrationData) -> Result<Arc<Drawn>, Re
                 (f, svg)
             })
             .collect();
-        Drawn { key, figures }
+        Drawn { key, at: std::time::Instant::now(), figures }
     })
     .await
     .map_err(|e| error_page(state, StatusCode::INTERNAL_SERVER_ERROR, &format!("drawing the figures: {e}")))?;
@@ -794,17 +853,25 @@ mod tests {
     }
 
     #[test]
-    fn forms_and_cookies_decode() {
-        let f = form_fields(b"next=%2Fworkers&token=a+b%26c%3D%25");
-        assert_eq!(f, vec![("next".into(), "/workers".into()), ("token".into(), "a b&c=%".into())]);
-        assert_eq!(form_fields(b"token=%zz%4"), vec![("token".into(), "%zz%4".into())]);
-        assert_eq!(unhex(&hex("s3cr=t; ü")).as_deref(), Some("s3cr=t; ü"));
-        assert_eq!(unhex("zz"), None);
-        let mut h = HeaderMap::new();
-        h.insert(header::COOKIE, HeaderValue::from_static("a=1; cryofit_session=6869; b=2"));
-        assert_eq!(cookie(&h, SESSION_COOKIE), Some("6869"));
+    fn sign_in_goes_only_to_local_paths() {
         assert_eq!(local_path(Some("//evil.example")), "/");
         assert_eq!(local_path(Some("/calibrations/3")), "/calibrations/3");
         assert_eq!(local_path(None), "/");
+        // browsers drop TAB, CR and LF from URLs: `/\t/evil.example` would become `//evil.example`
+        assert_eq!(local_path(Some("/\t/evil.example")), "/");
+        assert_eq!(local_path(Some("/\n/evil.example")), "/");
+        assert_eq!(local_path(Some("/ /evil.example")), "/");
+        assert_eq!(local_path(Some("/\\evil.example")), "/");
+        assert_eq!(local_path(Some("/\u{0}x")), "/");
+    }
+
+    #[test]
+    fn session_ids_are_stored_as_digests() {
+        let id = hex(&[0xab; 32]);
+        assert_eq!(id.len(), 64);
+        assert_eq!(digest(&id).len(), 64);
+        assert_ne!(digest(&id), id);
+        // SHA-256 of "abc"
+        assert_eq!(digest("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
     }
 }

@@ -44,6 +44,8 @@ pub type Tx = sqlx::Transaction<'static, sqlx::Sqlite>;
 pub struct Db {
     read: SqlitePool,
     write: SqlitePool,
+    /// Why the last write failed, `None` after a successful one.
+    write_error: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
 /// Current time, Unix milliseconds.
@@ -64,15 +66,58 @@ impl Db {
             .synchronous(SqliteSynchronous::Normal)
             .busy_timeout(Duration::from_secs(10))
             .foreign_keys(true);
-        let write = SqlitePoolOptions::new().max_connections(1).connect_with(options.clone()).await?;
+        // A write that failed (disk full, file size limit, I/O error) can leave the connection
+        // inside a transaction that SQLite already ended, which sqlx still counts as open: every
+        // later `BEGIN` would fail with "non-zero transaction depth". Such a connection is closed
+        // when it is next taken from the pool, and a fresh one is opened.
+        let write = SqlitePoolOptions::new()
+            .max_connections(1)
+            .before_acquire(|conn, _| {
+                Box::pin(async move {
+                    use sqlx::Connection as _;
+                    if conn.is_in_transaction() {
+                        tracing::warn!("the writer connection was left inside a failed transaction: reopening it");
+                        return Ok(false);
+                    }
+                    Ok(true)
+                })
+            })
+            .connect_with(options.clone())
+            .await?;
         sqlx::migrate!("../migrations").run(&write).await?;
         let read = SqlitePoolOptions::new().max_connections(4).connect_with(options.read_only(true)).await?;
-        Ok(Self { read, write })
+        Ok(Self { read, write, write_error: Default::default() })
     }
 
     /// Starts a write transaction (`BEGIN IMMEDIATE` on the writer connection).
     pub async fn begin(&self) -> Result<Tx, DbError> {
-        Ok(self.write.begin_with("BEGIN IMMEDIATE").await?)
+        let tx = self.write.begin_with("BEGIN IMMEDIATE").await;
+        self.note(tx.as_ref().err());
+        Ok(tx?)
+    }
+
+    /// Commits a write transaction, recording the outcome for [`Db::write_error`].
+    pub async fn commit(&self, tx: Tx) -> Result<(), DbError> {
+        let done = tx.commit().await;
+        self.note(done.as_ref().err());
+        Ok(done?)
+    }
+
+    fn note(&self, e: Option<&sqlx::Error>) {
+        if let Ok(mut w) = self.write_error.lock() {
+            *w = e.map(|e| e.to_string());
+        }
+    }
+
+    /// Why the last write transaction failed to start or commit, if it did.
+    pub fn write_error(&self) -> Option<String> {
+        self.write_error.lock().ok().and_then(|w| w.clone())
+    }
+
+    /// The writer pool (for tests that need to reach the writer connection itself).
+    #[doc(hidden)]
+    pub fn writer(&self) -> &SqlitePool {
+        &self.write
     }
 
     /// The reader pool.
@@ -490,7 +535,10 @@ pub struct Claimed {
     pub parameters_json: String,
 }
 
-/// Leases up to `n` queued jobs of the given calibrations, oldest first, in one statement.
+/// Leases up to `n` queued jobs of the given calibrations in one statement, fairly: round-robin
+/// over the calibrations in the order given (each calibration's oldest job first, then each
+/// one's second, …), so that one calibration's queue cannot hold every worker. The caller rotates
+/// the order between claims so that one-job claims take turns too.
 pub async fn claim(
     tx: &mut SqliteConnection,
     calibrations: &[i64],
@@ -501,10 +549,14 @@ pub async fn claim(
 ) -> Result<Vec<Claimed>, DbError> {
     let ids = serde_json::to_string(calibrations).map_err(|e| DbError::Corrupt(e.to_string()))?;
     let rows = sqlx::query(
-        "UPDATE jobs SET status = 'leased', lease_id = ?1 || '-' || id, lease_owner = ?2, lease_expires = ?3,
+        "WITH turn AS (SELECT value AS calibration_id, key AS position FROM json_each(?4)),
+              ranked AS (SELECT j.id AS id, t.position AS position,
+                                ROW_NUMBER() OVER (PARTITION BY j.calibration_id ORDER BY j.id) AS rank
+                         FROM jobs j JOIN turn t ON t.calibration_id = j.calibration_id
+                         WHERE j.status = 'queued')
+         UPDATE jobs SET status = 'leased', lease_id = ?1 || '-' || id, lease_owner = ?2, lease_expires = ?3,
                 attempts = attempts + 1
-         WHERE id IN (SELECT id FROM jobs WHERE status = 'queued'
-                      AND calibration_id IN (SELECT value FROM json_each(?4)) ORDER BY id LIMIT ?5)
+         WHERE id IN (SELECT id FROM ranked ORDER BY rank, position LIMIT ?5)
          RETURNING id, lease_id, calibration_id, parameter_set_id, experiment_id,
                    (SELECT parameters_json FROM parameter_sets p WHERE p.id = parameter_set_id)",
     )
@@ -951,4 +1003,99 @@ pub async fn all_results(pool: &SqlitePool, calibration_id: i64) -> Result<Vec<c
 pub async fn job_counts(pool: &SqlitePool) -> Result<BTreeMap<String, i64>, DbError> {
     let rows = sqlx::query("SELECT status, COUNT(*) FROM jobs GROUP BY status").fetch_all(pool).await?;
     Ok(rows.into_iter().map(|r| (r.get(0), r.get(1))).collect())
+}
+
+// ---------------------------------------------------------------------------------------------
+// dashboard sessions
+
+/// Stores a session by the digest of its id.
+pub async fn insert_session(
+    tx: &mut SqliteConnection,
+    digest: &str,
+    created: i64,
+    expires: i64,
+) -> Result<(), DbError> {
+    sqlx::query("INSERT INTO sessions (digest, created, expires) VALUES (?, ?, ?)")
+        .bind(digest)
+        .bind(created)
+        .bind(expires)
+        .execute(tx)
+        .await?;
+    Ok(())
+}
+
+/// True when a session with this digest is stored and has not expired at `now_ms`.
+pub async fn session_valid(pool: &SqlitePool, digest: &str, now_ms: i64) -> Result<bool, DbError> {
+    let row = sqlx::query("SELECT 1 FROM sessions WHERE digest = ? AND expires > ?")
+        .bind(digest)
+        .bind(now_ms)
+        .fetch_optional(pool)
+        .await?;
+    Ok(row.is_some())
+}
+
+/// Revokes a session.
+pub async fn delete_session(tx: &mut SqliteConnection, digest: &str) -> Result<(), DbError> {
+    sqlx::query("DELETE FROM sessions WHERE digest = ?").bind(digest).execute(tx).await?;
+    Ok(())
+}
+
+/// Forgets sessions that expired before `now_ms`.
+pub async fn delete_expired_sessions(tx: &mut SqliteConnection, now_ms: i64) -> Result<(), DbError> {
+    sqlx::query("DELETE FROM sessions WHERE expires <= ?").bind(now_ms).execute(tx).await?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    async fn scratch_db(tag: &str) -> (Db, std::path::PathBuf) {
+        let dir = std::env::temp_dir().join(format!("cryofit-db-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("scratch dir");
+        let db = Db::open(&dir.join("c.db").display().to_string()).await.expect("open");
+        (db, dir)
+    }
+
+    async fn store(db: &Db, data: &str) -> Result<i64, DbError> {
+        let mut tx = db.begin().await?;
+        let id = insert_experiment(&mut tx, "e", "nitrogen", "case", data).await?;
+        db.commit(tx).await?;
+        Ok(id)
+    }
+
+    #[tokio::test]
+    async fn a_transaction_that_failed_under_sqlx_does_not_wedge_later_writes() {
+        let (db, dir) = scratch_db("wedge").await;
+        // SQLite ends the transaction behind sqlx's back, as an I/O error during COMMIT does: the
+        // COMMIT fails and sqlx still counts the transaction as open
+        let mut tx = db.begin().await.expect("begin");
+        sqlx::query("ROLLBACK").execute(&mut *tx).await.expect("rollback");
+        let e = db.commit(tx).await.expect_err("nothing to commit");
+        assert!(e.to_string().contains("no transaction is active"), "{e}");
+        assert!(db.write_error().is_some());
+        // before: "attempted to call begin_with at non-zero transaction depth", for every write
+        for k in 0..3 {
+            store(&db, "x").await.unwrap_or_else(|e| panic!("write {k} after the failure: {e}"));
+        }
+        assert_eq!(db.write_error(), None);
+        db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[tokio::test]
+    async fn a_full_database_fails_one_write_and_the_next_ones_work_again() {
+        let (db, dir) = scratch_db("full").await;
+        store(&db, "small").await.expect("first write");
+        // the file may not grow: the disk is full as far as SQLite can tell
+        let pages: i64 = sqlx::query_scalar("PRAGMA page_count").fetch_one(db.writer()).await.expect("page count");
+        sqlx::query(&format!("PRAGMA max_page_count = {}", pages + 1)).execute(db.writer()).await.expect("limit");
+        let big = "x".repeat(1 << 20);
+        let e = store(&db, &big).await.expect_err("a megabyte does not fit");
+        assert!(e.to_string().contains("full"), "{e}");
+        store(&db, "small again").await.expect("a small write after the failed one");
+        db.close().await;
+        let _ = std::fs::remove_dir_all(dir);
+    }
 }

@@ -48,11 +48,14 @@ pub struct FigureOptions {
     pub seed: u64,
     /// Threads for those simulations.
     pub threads: usize,
+    /// End the model runs at the end of each experiment's data (the dashboard) instead of the
+    /// case's `time.end_s` (reports, which show the whole run).
+    pub end_at_data: bool,
 }
 
 impl Default for FigureOptions {
     fn default() -> Self {
-        Self { band_draws: 0, seed: 0, threads: 1 }
+        Self { band_draws: 0, seed: 0, threads: 1, end_at_data: false }
     }
 }
 
@@ -72,7 +75,7 @@ pub fn figures(d: &CalibrationData, fluids: &FluidLoader, opts: &FigureOptions) 
     let (marginals, corner) = posterior_figures(&ctx, &posterior);
     out.push(marginals);
     out.push(corner);
-    let built = ctx.experiments(fluids);
+    let built = ctx.experiments(fluids, opts.end_at_data);
     let best = c.best_parameters.clone();
     match &built {
         Err(why) => out.push(skipped("fit", "Model against data", why.clone())),
@@ -188,7 +191,7 @@ impl<'a> Context<'a> {
         Err("no MCMC stage and no finished variance stage: there is no posterior yet".into())
     }
 
-    fn experiments(&self, fluids: &FluidLoader) -> Result<Vec<Built>, String> {
+    fn experiments(&self, fluids: &FluidLoader, end_at_data: bool) -> Result<Vec<Built>, String> {
         let spec = self.spec.as_ref().map_err(Clone::clone)?;
         let mut fixed = ParameterSet::new();
         for (name, &v) in &spec.fixed {
@@ -203,9 +206,12 @@ impl<'a> Context<'a> {
                 let data =
                     Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
                 let (table, _) = fluids(&case.fluid.name).map_err(|m| format!("{case_label}: {m}"))?;
-                let model = SolverModel::new(case.clone(), table, &fixed)
+                let mut model = SolverModel::new(case.clone(), table, &fixed)
                     .map_err(|m| format!("{case_label}: {m}"))?
                     .with_wall_limit(Some(spec.max_evaluation_s));
+                if end_at_data {
+                    model = model.with_end_at(data.end_time());
+                }
                 Ok(Built { name: e.name.clone(), case, data, model: Arc::new(model) })
             })
             .collect()
@@ -588,5 +594,61 @@ fn boiling_figure(
         name: name.into(),
         title: title.into(),
         plot: Ok(Plot::Boiling(plots::BoilingCurves { title: full, panels })),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// A calibration of the tiny case lengthened to 1000 s, with data to 8 s.
+    fn data() -> CalibrationData {
+        let case = include_str!("../../tests/fixtures/tiny.toml").replace("end_s = 8.0", "end_s = 1000.0");
+        let experiment = api::Experiment {
+            id: 1,
+            name: "tiny".into(),
+            fluid: "nitrogen".into(),
+            case,
+            data: include_str!("../../tests/fixtures/tiny-data.csv").into(),
+            created: 0,
+        };
+        let spec = json!({
+            "name": "t", "seed": 1, "experiments": [1],
+            "parameters": [{"name": "Gwsc", "lower": 0.5, "upper": 2.0}],
+            "weights": {"wall_temperature_k": {"weight": 1.0, "sigma": 1.0}},
+            "stages": [{"algorithm": "cmaes", "budget": 6}]
+        });
+        let calibration = api::Calibration {
+            id: 1,
+            name: "t".into(),
+            status: api::CalibrationStatus::Completed,
+            evaluations: 0,
+            failed_evaluations: 0,
+            budget: 6,
+            stage: 0,
+            best_cost: None,
+            best_parameters: None,
+            experiments: vec![1],
+            solver_version: api::SOLVER_VERSION.into(),
+            fluid_hashes: BTreeMap::new(),
+            error: None,
+            spec,
+            stages: Vec::new(),
+            created: 0,
+            updated: 0,
+        };
+        CalibrationData { calibration, sets: Vec::new(), experiments: vec![experiment] }
+    }
+
+    #[test]
+    fn dashboard_runs_end_at_the_data_and_reports_run_the_whole_case() {
+        let d = data();
+        let ctx = Context::new(&d);
+        let fluids = crate::embedded_fluids();
+        let dashboard = ctx.experiments(&fluids, true).expect("experiments");
+        assert_eq!(dashboard[0].model.stop_s(), 8.0, "the data end at 8 s");
+        let report = ctx.experiments(&fluids, false).expect("experiments");
+        assert_eq!(report[0].model.stop_s(), 1000.0, "the case runs 1000 s");
     }
 }

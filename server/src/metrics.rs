@@ -48,6 +48,7 @@ struct Inner {
     stale: u64,
     claim_latency: Histogram,
     evaluation: Histogram,
+    figure_builds: u64,
 }
 
 /// The coordinator's counters and histograms.
@@ -69,6 +70,7 @@ impl Default for Metrics {
                 stale: 0,
                 claim_latency: Histogram::new(LATENCY),
                 evaluation: Histogram::new(DURATION),
+                figure_builds: 0,
             }),
         }
     }
@@ -104,6 +106,11 @@ impl Metrics {
         self.with(|m| m.evaluation.observe(seconds));
     }
 
+    /// The dashboard drew a calibration's figures.
+    pub fn figures_built(&self) {
+        self.with(|m| m.figure_builds += 1);
+    }
+
     /// The exposition text, with the job counts by status (queued, leased, done, failed).
     pub fn render(&self, jobs: &BTreeMap<String, i64>) -> String {
         let mut out = String::new();
@@ -129,6 +136,7 @@ impl Metrics {
             ("cryofit_jobs_leased_total", "Jobs leased.", g.jobs_leased),
             ("cryofit_expired_leases_total", "Leases that expired without a result.", g.expired),
             ("cryofit_stale_results_total", "Results quoting a lease that was not current.", g.stale),
+            ("cryofit_figure_builds_total", "Calibration figure sets the dashboard drew.", g.figure_builds),
         ] {
             let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}");
         }

@@ -50,6 +50,7 @@ use crate::routes;
         api::JobOutcome,
         api::SeriesCost,
         api::Health,
+        api::Limits,
     )),
     modifiers(&Security)
 )]
@@ -70,7 +71,26 @@ impl utoipa::Modify for Security {
     }
 }
 
-/// The document.
-pub fn document() -> utoipa::openapi::OpenApi {
-    Doc::openapi()
+/// The document, with this coordinator's [`api::Limits`]: in the description, and as the
+/// extension `x-cryofit-limits` of `info` (the same object as the `Limits` schema).
+pub fn document(limits: &api::Limits) -> utoipa::openapi::OpenApi {
+    let mut doc = Doc::openapi();
+    let text = format!(
+        "Experiments, calibrations, history and worker jobs.\n\nLimits of this coordinator (a request over one \
+         is refused with 422 naming the field): at most {} evaluations per calibration (--max-budget); stage \
+         population, trajectories, walkers, points, levels, restarts and keep at most {} (--max-stage-size); \
+         optimiser state at most {} bytes (--max-state-bytes); at most {} recorded values per evaluation \
+         (--max-output-points); max_evaluation_s at most {} s (--max-evaluation-s).",
+        limits.max_budget,
+        limits.max_stage_size,
+        limits.max_state_bytes,
+        limits.max_output_points,
+        limits.max_evaluation_s
+    );
+    doc.info.description = Some(text);
+    if let Ok(value) = serde_json::to_value(limits) {
+        let ext = utoipa::openapi::extensions::ExtensionsBuilder::new().add("x-cryofit-limits", value).build();
+        doc.info.extensions.get_or_insert_with(Default::default).merge(ext);
+    }
+    doc
 }

@@ -7,13 +7,14 @@ use std::fmt::Write as _;
 
 use axum::body::Body;
 use axum::extract::{FromRequest, FromRequestParts, MatchedPath, Request, State};
-use axum::http::{HeaderMap, Method, StatusCode, header, request::Parts};
+use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header, request::Parts};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use cryofit_api as api;
 use serde::de::DeserializeOwned;
+use tower_http::set_header::SetResponseHeaderLayer;
 use tower_http::trace::TraceLayer;
 
 use crate::AppState;
@@ -116,24 +117,25 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, ApiError> {
         let limit = state.settings.body_limit;
-        let too_large = |n: String| {
-            ApiError::new(
-                StatusCode::PAYLOAD_TOO_LARGE,
-                "payload_too_large",
-                format!("the body ({n} bytes) exceeds the limit of {limit} bytes"),
-            )
-        };
         if let Some(len) = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok())
             && let Ok(len) = len.parse::<u64>()
             && len > limit as u64
         {
-            return Err(too_large(len.to_string()));
+            return Err(ApiError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                "payload_too_large",
+                format!("the body ({len} bytes) exceeds the limit of {limit} bytes"),
+            ));
         }
         let bytes = axum::body::to_bytes(req.into_body(), limit).await.map_err(|e| {
             let mut src: Option<&(dyn std::error::Error + 'static)> = Some(&e);
             while let Some(s) = src {
                 if s.is::<http_body_util::LengthLimitError>() {
-                    return too_large("more than".into());
+                    return ApiError::new(
+                        StatusCode::PAYLOAD_TOO_LARGE,
+                        "payload_too_large",
+                        format!("the body exceeds the limit of {limit} bytes"),
+                    );
                 }
                 src = s.source();
             }
@@ -276,18 +278,34 @@ pub fn router(state: AppState) -> Router {
         .route("/jobs/results", post(results_batch))
         .route("/openapi.json", get(openapi))
         .layer(middleware::from_fn_with_state(state.clone(), auth));
-    Router::new()
+    let app = Router::new()
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .nest("/api/v1", v1)
         .merge(crate::dashboard::router(state.clone()))
         .fallback(not_found)
-        .method_not_allowed_fallback(method_not_allowed)
+        .method_not_allowed_fallback(method_not_allowed);
+    with_security_headers(app)
         .layer(TraceLayer::new_for_http().make_span_with(|req: &Request<Body>| {
             let route = req.extensions().get::<MatchedPath>().map_or("unmatched", |m| m.as_str());
             tracing::info_span!("request", method = %req.method(), route = %route)
         }))
         .with_state(state)
+}
+
+/// The Content-Security-Policy of every answer: the dashboard's own script and style sheet
+/// only, inline SVG figures, no framing, forms posting only to this origin.
+pub const CONTENT_SECURITY_POLICY: &str = "default-src 'none'; script-src 'self'; style-src 'self' 'unsafe-inline'; \
+     img-src 'self' data:; connect-src 'self'; form-action 'self'; frame-ancestors 'none'; base-uri 'none'";
+
+/// Security headers on every answer (dashboard pages, API, errors): CSP, no framing, no MIME
+/// sniffing, no referrer.
+fn with_security_headers(r: Router<AppState>) -> Router<AppState> {
+    let set = |name, value: &'static str| SetResponseHeaderLayer::overriding(name, HeaderValue::from_static(value));
+    r.layer(set(header::CONTENT_SECURITY_POLICY, CONTENT_SECURITY_POLICY))
+        .layer(set(header::X_FRAME_OPTIONS, "DENY"))
+        .layer(set(header::X_CONTENT_TYPE_OPTIONS, "nosniff"))
+        .layer(set(header::REFERRER_POLICY, "no-referrer"))
 }
 
 async fn not_found(req: Request) -> ApiError {
@@ -302,9 +320,23 @@ async fn method_not_allowed(req: Request) -> ApiError {
     )
 }
 
-#[utoipa::path(get, path = "/healthz", responses((status = 200, body = api::Health)))]
-async fn healthz() -> Json<api::Health> {
-    Json(api::Health { status: "ok".into(), version: env!("CARGO_PKG_VERSION").into() })
+/// Healthy when the database can be written: the answer renews the coordinator's database lock,
+/// a real write. 503 with the reason otherwise (a full disk, a file turned read-only, the lock
+/// lost to another coordinator).
+#[utoipa::path(get, path = "/healthz",
+    responses((status = 200, body = api::Health), (status = 503, body = api::Health)))]
+async fn healthz(State(state): State<AppState>) -> (StatusCode, Json<api::Health>) {
+    let version = env!("CARGO_PKG_VERSION").to_string();
+    match state.lock.renew(state.coordinator.db()).await {
+        Ok(()) => (StatusCode::OK, Json(api::Health { status: "ok".into(), version, reason: None })),
+        Err(reason) => {
+            tracing::error!(%reason, "unhealthy");
+            (
+                StatusCode::SERVICE_UNAVAILABLE,
+                Json(api::Health { status: "unhealthy".into(), version, reason: Some(reason) }),
+            )
+        }
+    }
 }
 
 async fn metrics(State(state): State<AppState>) -> ApiResult<Response> {
@@ -313,8 +345,8 @@ async fn metrics(State(state): State<AppState>) -> ApiResult<Response> {
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response())
 }
 
-async fn openapi() -> Response {
-    Json(crate::openapi::document()).into_response()
+async fn openapi(State(state): State<AppState>) -> Response {
+    Json(crate::openapi::document(&state.settings.limits)).into_response()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -327,8 +359,9 @@ pub(crate) async fn create_experiment(
     JsonBody(req): JsonBody<api::CreateExperiment>,
 ) -> ApiResult<(StatusCode, Json<api::Created>)> {
     let fluids = state.settings.fluids.clone();
+    let limits = state.settings.limits;
     let (req, fluid) = tokio::task::spawn_blocking(move || {
-        let f = validate::experiment(&req, &fluids);
+        let f = validate::experiment(&req, &fluids, &limits);
         (req, f)
     })
     .await
@@ -336,7 +369,7 @@ pub(crate) async fn create_experiment(
     let fluid = fluid?;
     let mut tx = state.coordinator.db().begin().await?;
     let id = db::insert_experiment(&mut tx, &req.name, &fluid, &req.case, &req.data).await?;
-    tx.commit().await.map_err(DbError::from)?;
+    state.coordinator.db().commit(tx).await?;
     tracing::info!(experiment = id, "experiment stored");
     Ok((StatusCode::CREATED, Json(api::Created { id })))
 }
@@ -401,8 +434,9 @@ pub(crate) async fn create_calibration(
         }
     }
     let fluids = state.settings.fluids.clone();
+    let limits = state.settings.limits;
     let (req, prepared) = tokio::task::spawn_blocking(move || {
-        let p = validate::calibration(&req, &rows, &fluids);
+        let p = validate::calibration(&req, &rows, &fluids, &limits);
         (req, p)
     })
     .await
@@ -589,7 +623,7 @@ pub(crate) async fn claim(
     State(state): State<AppState>,
     JsonBody(req): JsonBody<api::ClaimRequest>,
 ) -> ApiResult<Json<api::ClaimResponse>> {
-    if req.worker.trim().is_empty() || req.worker.len() > 200 {
+    if req.worker.trim().is_empty() || req.worker.chars().count() > 200 {
         return Err(ApiError::validation("worker", "give a name of 1–200 characters"));
     }
     if req.slots == 0 || req.slots > 4096 {

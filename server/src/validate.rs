@@ -4,11 +4,13 @@ use std::collections::BTreeMap;
 
 use cryofit_api as api;
 use cryofit_calib::config::{CalibrationSpec, DEFAULT_MAX_EVALUATION_S, ExperimentRef};
+use cryofit_calib::model::SolverModel;
 use cryofit_calib::pipeline::Pipeline;
 use cryofit_calib::problem::{Problem, experiment_from_texts};
 use cryofit_solver::params::{self, ParameterSet};
 
 use crate::FluidLoader;
+use crate::limits::{self, Limits};
 
 /// A field-level validation error.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,7 +22,7 @@ pub struct Invalid {
 }
 
 impl Invalid {
-    fn at(field: impl Into<String>, message: impl Into<String>) -> Self {
+    pub(crate) fn at(field: impl Into<String>, message: impl Into<String>) -> Self {
         Self { field: Some(field.into()), message: message.into() }
     }
 
@@ -44,25 +46,39 @@ pub fn field_of(message: &str) -> Option<String> {
 
 /// Checks an experiment by building it (case, data, stations, duration, fluid). Returns the
 /// canonical fluid name.
-pub fn experiment(req: &api::CreateExperiment, fluids: &FluidLoader) -> Result<String, Invalid> {
-    if req.name.trim().is_empty() {
-        return Err(Invalid::at("name", "must not be empty"));
-    }
-    if req.name.len() > 200 {
-        return Err(Invalid::at("name", format!("{} characters: at most 200", req.name.len())));
-    }
+pub fn experiment(req: &api::CreateExperiment, fluids: &FluidLoader, limits: &Limits) -> Result<String, Invalid> {
+    check_name(&req.name)?;
     let case =
         cryofit_solver::case::Case::from_toml(&req.case, "case").map_err(|e| Invalid::at("case", e.to_string()))?;
     cryofit_calib::data::Dataset::from_csv(&req.data, "data").map_err(|e| Invalid::at("data", e.to_string()))?;
     let fluid = cryofit_solver::fluids::canonical_name(&case.fluid.name)
         .ok_or_else(|| Invalid::at("case", format!("case: fluid.name `{}` is not a known fluid", case.fluid.name)))?;
     let loader = |n: &str| fluids(n).map(|(t, _)| t);
-    experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &ParameterSet::new(), None)
-        .map_err(|m| {
-            let field = if m.starts_with("data") { "data" } else { "case" };
-            Invalid::at(field, m)
-        })?;
+    let built =
+        experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &ParameterSet::new(), None)
+            .map_err(|m| {
+                let field = if m.starts_with("data") { "data" } else { "case" };
+                Invalid::at(field, m)
+            })?;
+    if let Some(model) = built.model.as_any().downcast_ref::<SolverModel>() {
+        limits::check_outputs(model, "case", "case", limits)?;
+    }
     Ok(fluid.to_string())
+}
+
+/// Longest name of an experiment or a calibration, characters.
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// A name: not blank, at most [`MAX_NAME_CHARS`] characters (not bytes).
+pub(crate) fn check_name(name: &str) -> Result<(), Invalid> {
+    if name.trim().is_empty() {
+        return Err(Invalid::at("name", "must not be empty"));
+    }
+    let n = name.chars().count();
+    if n > MAX_NAME_CHARS {
+        return Err(Invalid::at("name", format!("{n} characters: at most {MAX_NAME_CHARS}")));
+    }
+    Ok(())
 }
 
 /// A validated calibration: the pipeline to start and the fluid hashes.
@@ -103,8 +119,13 @@ pub fn calibration(
     req: &api::CreateCalibration,
     experiments: &[api::Experiment],
     fluids: &FluidLoader,
+    limits: &Limits,
 ) -> Result<Prepared, Invalid> {
+    check_name(&req.name)?;
     let spec = spec_of(req, experiments);
+    // sizes first (plain arithmetic on the request): building the pipeline allocates what its
+    // stages ask for, and the limits name the flag that sets them
+    limits::check_calibration(&spec, spec.parameters.len(), limits)?;
     spec.validate().map_err(Invalid::from_message)?;
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
@@ -134,6 +155,9 @@ pub fn calibration(
             Some(spec.max_evaluation_s),
         )
         .map_err(|m| Invalid::at(field.clone(), m))?;
+        if let Some(model) = exp.model.as_any().downcast_ref::<SolverModel>() {
+            limits::check_outputs(model, &case_label, &field, limits)?;
+        }
         if let Some((fluid, h)) = hash {
             hashes.insert(fluid, h);
         }
@@ -164,6 +188,14 @@ pub fn calibration(
 #[cfg(test)]
 mod tests {
     use super::field_of;
+
+    #[test]
+    fn names_are_counted_in_characters() {
+        assert!(super::check_name(&"é".repeat(200)).is_ok(), "400 bytes, 200 characters");
+        let e = super::check_name(&"é".repeat(201)).unwrap_err();
+        assert_eq!(e.message, "201 characters: at most 200");
+        assert!(super::check_name("  ").is_err());
+    }
 
     #[test]
     fn fields_are_taken_from_messages() {

@@ -90,6 +90,11 @@ impl Proc {
         Self { name: name.to_string(), child: Some(child), log, out }
     }
 
+    /// Its process id, while it runs.
+    pub fn pid(&self) -> Option<u32> {
+        self.child.as_ref().map(Child::id)
+    }
+
     /// Sends SIGKILL and waits.
     pub fn kill(&mut self) {
         if let Some(mut c) = self.child.take() {

@@ -1,6 +1,6 @@
 //! HTTP client of the coordinator's REST API (used by the worker loop and the CLI).
 //!
-//! Transport failures and 5xx answers are retried with exponential backoff and jitter for up to
+//! Transport failures, 429 and 5xx answers are retried with exponential backoff and jitter for up to
 //! [`Client::with_retry_for`] (the coordinator may be restarting); 4xx answers are returned at once
 //! as [`ClientError::Api`] with the server's code, message and field.
 
@@ -124,7 +124,10 @@ impl Client {
             }
             .await;
             let retry_reason = match attempt {
-                Ok((status, text)) if !status.is_server_error() => return Ok((status, text)),
+                // 429: the coordinator (or a proxy) asks to come back later, like a 5xx
+                Ok((status, text)) if !status.is_server_error() && status != StatusCode::TOO_MANY_REQUESTS => {
+                    return Ok((status, text));
+                }
                 Ok((status, text)) => format!("{status}: {text}"),
                 Err(e) => e.to_string(),
             };

@@ -2,10 +2,15 @@
 //! on tokio's threads), heartbeats their leases and reports costs.
 //!
 //! The worker keeps up to twice its slots of jobs in hand (running plus prefetched) so slots never
-//! wait for a claim round trip. Experiments are fetched once and cached by (calibration,
-//! experiment). When the coordinator is away, requests are retried with backoff and jitter. On
-//! shutdown (SIGTERM) the worker stops claiming, finishes the jobs it holds, reports them and
-//! exits.
+//! wait for a claim round trip. Experiments are fetched once and kept by (calibration,
+//! experiment) in a cache bounded in bytes (least recently used first out); fluid tables are
+//! loaded once per process and shared by every experiment. A download that fails for a passing
+//! reason (the coordinator away, 429, 5xx) is retried with backoff and never remembered: a job
+//! fails only for its own reasons. When the coordinator is away, requests are retried with
+//! backoff and jitter. On shutdown (SIGTERM) the worker stops claiming and starting jobs,
+//! finishes and reports the evaluations running, and exits — after at most
+//! [`WorkerSettings::drain_timeout`], abandoning an evaluation still running then (its lease
+//! expires and the job is handed out again).
 
 #![warn(missing_docs)]
 
@@ -36,14 +41,47 @@ pub struct WorkerSettings {
     pub exit_when_idle: Option<Duration>,
     /// Name reported to the coordinator (unique per process).
     pub name: String,
+    /// On shutdown, how long running evaluations may take to finish before the worker exits
+    /// without them.
+    pub drain_timeout: Duration,
+    /// Bytes of prepared experiments kept (least recently used first out).
+    pub cache_bytes: usize,
 }
+
+/// Default [`WorkerSettings::drain_timeout`]: 60 s.
+pub const DEFAULT_DRAIN_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Default [`WorkerSettings::cache_bytes`]: 64 MiB.
+pub const DEFAULT_CACHE_BYTES: usize = 64 * 1024 * 1024;
 
 impl WorkerSettings {
     /// `slots` slots, named after the host and process id.
     pub fn new(slots: usize) -> Self {
         let host = std::env::var("HOSTNAME").ok().filter(|h| !h.is_empty()).unwrap_or_else(|| "worker".into());
-        Self { slots: slots.max(1), exit_when_idle: None, name: format!("{host}-{}", std::process::id()) }
+        Self {
+            slots: slots.max(1),
+            exit_when_idle: None,
+            name: format!("{host}-{}", std::process::id()),
+            drain_timeout: DEFAULT_DRAIN_TIMEOUT,
+            cache_bytes: DEFAULT_CACHE_BYTES,
+        }
     }
+}
+
+/// A loader that loads each fluid table once and hands out the same `Arc` afterwards, so that
+/// every prepared experiment of a fluid shares one table.
+pub fn shared_fluids(inner: FluidLoader) -> FluidLoader {
+    let loaded: std::sync::Mutex<HashMap<String, (Arc<FluidTable>, String)>> = Default::default();
+    Arc::new(move |name: &str| {
+        let key = cryofit_solver::fluids::canonical_name(name).unwrap_or(name).to_string();
+        let mut map = loaded.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((t, h)) = map.get(&key) {
+            return Ok((t.clone(), h.clone()));
+        }
+        let (t, h) = inner(name)?;
+        map.insert(key, (t.clone(), h.clone()));
+        Ok((t, h))
+    })
 }
 
 /// Why the worker stopped with an error.
@@ -79,6 +117,55 @@ pub struct Summary {
 struct Prepared {
     experiment: Experiment,
     weights: Weights,
+    /// Bytes it holds (its data; the fluid table is shared).
+    bytes: usize,
+}
+
+/// Prepared experiments by (calibration, experiment), at most a number of bytes of them: the
+/// least recently used go first. Jobs running hold their own reference, so an evicted entry lives
+/// until they end.
+#[derive(Debug)]
+struct PreparedCache {
+    entries: HashMap<(i64, i64), (Arc<Prepared>, u64)>,
+    bytes: usize,
+    limit: usize,
+    clock: u64,
+}
+
+impl PreparedCache {
+    fn new(limit: usize) -> Self {
+        Self { entries: HashMap::new(), bytes: 0, limit, clock: 0 }
+    }
+
+    fn get(&mut self, key: &(i64, i64)) -> Option<Arc<Prepared>> {
+        self.clock += 1;
+        let clock = self.clock;
+        self.entries.get_mut(key).map(|(p, used)| {
+            *used = clock;
+            p.clone()
+        })
+    }
+
+    /// Adds an entry, then evicts the least recently used others while over the limit (the new
+    /// one stays even when it alone is larger).
+    fn insert(&mut self, key: (i64, i64), p: Arc<Prepared>) {
+        self.clock += 1;
+        self.bytes += p.bytes;
+        if let Some((old, _)) = self.entries.insert(key, (p, self.clock)) {
+            self.bytes -= old.bytes;
+        }
+        while self.bytes > self.limit && self.entries.len() > 1 {
+            let Some(oldest) =
+                self.entries.iter().filter(|(k, _)| **k != key).min_by_key(|(_, (_, used))| *used).map(|(k, _)| *k)
+            else {
+                break;
+            };
+            if let Some((gone, _)) = self.entries.remove(&oldest) {
+                self.bytes -= gone.bytes;
+                tracing::debug!(calibration = oldest.0, experiment = oldest.1, "evicted a prepared experiment");
+            }
+        }
+    }
 }
 
 /// Runs one job: the model at the job's parameters and the cost against the data. Panics in the
@@ -153,6 +240,7 @@ pub async fn run(
     shutdown: impl Future<Output = ()> + Send,
 ) -> Result<Summary, WorkerError> {
     let slots = settings.slots.max(1);
+    let fluids = shared_fluids(fluids);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(slots)
         .thread_name(|i| format!("cryofit-eval-{i}"))
@@ -167,10 +255,11 @@ pub async fn run(
     let mut running = 0usize;
     let mut reporting = 0usize;
     let mut contexts: HashMap<i64, api::JobContext> = HashMap::new();
-    let mut prepared: HashMap<(i64, i64), Result<Arc<Prepared>, String>> = HashMap::new();
+    let mut prepared = PreparedCache::new(settings.cache_bytes);
     let mut preparing: std::collections::HashSet<(i64, i64)> = Default::default();
     let mut refused_logged: std::collections::HashSet<i64> = Default::default();
     let mut draining = false;
+    let mut drain_deadline: Option<Instant> = None;
     let mut idle_since = Instant::now();
     let mut next_claim = Instant::now();
     let mut claim_delay = Duration::from_millis(50);
@@ -180,6 +269,23 @@ pub async fn run(
     tokio::pin!(shutdown);
 
     loop {
+        if draining {
+            // jobs not started stay with the coordinator: their leases expire and they are
+            // handed out again
+            for id in waiting.drain(..) {
+                held.remove(&id);
+            }
+            if let Some(deadline) = drain_deadline
+                && Instant::now() >= deadline
+            {
+                tracing::warn!(
+                    running,
+                    drain_timeout_s = settings.drain_timeout.as_secs_f64(),
+                    "drain timeout: exiting without the evaluations still running (their leases expire)"
+                );
+                break;
+            }
+        }
         // dispatch waiting jobs whose experiment is ready onto free slots
         let mut k = 0;
         while running < slots && k < waiting.len() {
@@ -190,11 +296,10 @@ pub async fn run(
             };
             let key = (h.job.calibration_id, h.job.experiment_id);
             match prepared.get(&key) {
-                Some(Ok(p)) => {
+                Some(p) => {
                     waiting.remove(k);
                     running += 1;
                     h.started = Some(Instant::now());
-                    let p = p.clone();
                     let parameters = h.job.parameters.clone();
                     let tx = tx.clone();
                     let span = tracing::info_span!("job", job = id, calibration = key.0, experiment = key.1);
@@ -205,16 +310,6 @@ pub async fn run(
                         let _ =
                             tx.send(Event::Done { job: id, outcome, breakdown, seconds: t.elapsed().as_secs_f64() });
                     });
-                }
-                Some(Err(reason)) => {
-                    waiting.remove(k);
-                    let _ = tx.send(Event::Done {
-                        job: id,
-                        outcome: api::JobOutcome::Failed { reason: reason.clone() },
-                        breakdown: None,
-                        seconds: 0.0,
-                    });
-                    running += 1;
                 }
                 None => {
                     if preparing.insert(key) {
@@ -251,7 +346,11 @@ pub async fn run(
             };
             let claimed = tokio::select! {
                 r = client.claim(&req) => Some(r),
-                _ = &mut shutdown => { draining = true; None }
+                _ = &mut shutdown => {
+                    draining = true;
+                    drain_deadline = Some(Instant::now() + settings.drain_timeout);
+                    None
+                }
             };
             match claimed {
                 Some(Ok(resp)) => {
@@ -292,7 +391,10 @@ pub async fn run(
             }
         }
 
-        let wait = next_claim.saturating_duration_since(Instant::now()).max(Duration::from_millis(5));
+        let mut wait = next_claim.saturating_duration_since(Instant::now()).max(Duration::from_millis(5));
+        if let Some(deadline) = drain_deadline {
+            wait = wait.min(deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(5)));
+        }
         tokio::select! {
             ev = rx.recv() => {
                 let Some(ev) = ev else { break };
@@ -333,10 +435,29 @@ pub async fn run(
                     }
                     Event::Prepared { key, result } => {
                         preparing.remove(&key);
-                        if let Err(e) = &result {
-                            tracing::error!(calibration = key.0, experiment = key.1, error = %e, "cannot prepare experiment");
+                        match result {
+                            Ok(p) => prepared.insert(key, p),
+                            Err(e) => {
+                                // not remembered: the jobs waiting now fail with the reason, a
+                                // later job of this experiment prepares it again
+                                tracing::error!(calibration = key.0, experiment = key.1, error = %e, "cannot prepare experiment");
+                                let failing: Vec<i64> = waiting
+                                    .iter()
+                                    .copied()
+                                    .filter(|id| held.get(id).is_some_and(|h| (h.job.calibration_id, h.job.experiment_id) == key))
+                                    .collect();
+                                waiting.retain(|id| !failing.contains(id));
+                                for id in failing {
+                                    running += 1;
+                                    let _ = tx.send(Event::Done {
+                                        job: id,
+                                        outcome: api::JobOutcome::Failed { reason: e.clone() },
+                                        breakdown: None,
+                                        seconds: 0.0,
+                                    });
+                                }
+                            }
                         }
-                        prepared.insert(key, result);
                     }
                     Event::Lost { job } => {
                         // a lease that is not current: drop the job if it has not started
@@ -361,8 +482,13 @@ pub async fn run(
                 }
             }
             _ = &mut shutdown, if !draining => {
-                tracing::info!(jobs = held.len(), "shutdown: finishing the jobs in hand");
+                tracing::info!(
+                    running,
+                    drain_timeout_s = settings.drain_timeout.as_secs_f64(),
+                    "shutdown: finishing the evaluations running, starting no more"
+                );
                 draining = true;
+                drain_deadline = Some(Instant::now() + settings.drain_timeout);
             }
             _ = tokio::time::sleep(wait) => {}
         }
@@ -383,7 +509,7 @@ fn spawn_prepare(
     tokio::spawn(async move {
         let result = async {
             let ctx = context.ok_or_else(|| format!("no settings for calibration {}", key.0))?;
-            let text = client.experiment(key.1).await.map_err(|e| format!("experiment {}: {e}", key.1))?;
+            let text = download(&client, key.1).await?;
             tokio::task::spawn_blocking(move || build(&text, &ctx, &fluids))
                 .await
                 .map_err(|e| format!("preparing experiment {}: {e}", key.1))?
@@ -391,6 +517,36 @@ fn spawn_prepare(
         .await;
         let _ = tx.send(Event::Prepared { key, result });
     });
+}
+
+/// True for a failure that says nothing about the request: the coordinator away or busy
+/// (transport errors, 408, 429, 5xx).
+pub fn is_transient(e: &ClientError) -> bool {
+    match e {
+        ClientError::Transport { .. } => true,
+        ClientError::Api { status, .. } => matches!(status, 408 | 429 | 500..=599),
+    }
+}
+
+/// Longest pause between two downloads of an experiment that failed for a passing reason.
+const DOWNLOAD_BACKOFF_MAX: Duration = Duration::from_secs(30);
+
+/// Fetches an experiment, retrying failures that pass (see [`is_transient`]) with backoff and
+/// jitter for as long as it takes; other failures are returned with the reason.
+async fn download(client: &Client, id: i64) -> Result<api::Experiment, String> {
+    let mut delay = Duration::from_millis(200);
+    loop {
+        match client.experiment(id).await {
+            Ok(e) => return Ok(e),
+            Err(e) if is_transient(&e) => {
+                tracing::warn!(experiment = id, error = %e, retry_in_ms = delay.as_millis() as u64, "experiment download failed; retrying");
+                let jitter = rand::Rng::gen_range(&mut rand::thread_rng(), 0.5..1.5);
+                tokio::time::sleep(delay.mul_f64(jitter)).await;
+                delay = (delay * 2).min(DOWNLOAD_BACKOFF_MAX);
+            }
+            Err(e) => return Err(format!("experiment {id}: {e}")),
+        }
+    }
 }
 
 fn build(e: &api::Experiment, ctx: &api::JobContext, fluids: &FluidLoader) -> Result<Arc<Prepared>, String> {
@@ -411,7 +567,8 @@ fn build(e: &api::Experiment, ctx: &api::JobContext, fluids: &FluidLoader) -> Re
     )?;
     let weights =
         Weights(ctx.weights.iter().map(|(q, w)| (q.clone(), Weight { weight: w.weight, sigma: w.sigma })).collect());
-    Ok(Arc::new(Prepared { experiment, weights }))
+    let bytes = 4096 + 16 * experiment.data.len() + e.case.len();
+    Ok(Arc::new(Prepared { experiment, weights, bytes }))
 }
 
 /// Resolves on SIGTERM or Ctrl-C.
@@ -433,5 +590,89 @@ pub async fn shutdown_signal() {
     tokio::select! {
         _ = ctrl_c => {}
         _ = term => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prepared(bytes: usize) -> Arc<Prepared> {
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fixtures/tiny.toml"))
+            .expect("tiny case");
+        let data = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/fixtures/tiny-data.csv"))
+            .expect("tiny data");
+        let loader =
+            |n: &str| cryofit_solver::fluids::embedded(n).map(|t| Arc::new(t.clone())).map_err(|e| e.to_string());
+        let experiment =
+            experiment_from_texts("tiny", &text, "case", &data, "data", loader, &ParameterSet::new(), None)
+                .expect("experiment");
+        Arc::new(Prepared { experiment, weights: Weights(BTreeMap::new()), bytes })
+    }
+
+    #[test]
+    fn the_cache_of_prepared_experiments_is_bounded_in_bytes_least_recently_used_first_out() {
+        let mut c = PreparedCache::new(250);
+        let p = prepared(100);
+        c.insert(
+            (1, 1),
+            Arc::new(Prepared { experiment: p.experiment.clone(), weights: Weights(BTreeMap::new()), bytes: 100 }),
+        );
+        c.insert(
+            (1, 2),
+            Arc::new(Prepared { experiment: p.experiment.clone(), weights: Weights(BTreeMap::new()), bytes: 100 }),
+        );
+        assert!(c.get(&(1, 1)).is_some(), "(1, 1) is now the most recently used");
+        c.insert(
+            (2, 1),
+            Arc::new(Prepared { experiment: p.experiment.clone(), weights: Weights(BTreeMap::new()), bytes: 100 }),
+        );
+        assert!(c.bytes <= 250, "{} bytes kept", c.bytes);
+        assert!(c.get(&(1, 2)).is_none(), "the least recently used went first");
+        assert!(c.get(&(1, 1)).is_some() && c.get(&(2, 1)).is_some());
+        // one entry larger than the limit stays alone
+        c.insert(
+            (3, 1),
+            Arc::new(Prepared { experiment: p.experiment.clone(), weights: Weights(BTreeMap::new()), bytes: 1000 }),
+        );
+        assert_eq!(c.entries.len(), 1);
+        assert_eq!(c.bytes, 1000);
+        // 41 calibrations' experiments in a 250-byte cache: never more than the limit (plus the newest)
+        for k in 0..41 {
+            c.insert(
+                (10 + k, 1),
+                Arc::new(Prepared { experiment: p.experiment.clone(), weights: Weights(BTreeMap::new()), bytes: 100 }),
+            );
+            assert!(c.bytes <= 250, "{} bytes kept after {k}", c.bytes);
+        }
+    }
+
+    #[test]
+    fn every_experiment_of_a_fluid_shares_one_table() {
+        let copies = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        let counted = copies.clone();
+        // a loader that makes a private copy each time, like reading a table from a file
+        let inner: FluidLoader = Arc::new(move |n: &str| {
+            counted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let t = cryofit_solver::fluids::embedded(n).map_err(|e| e.to_string())?;
+            Ok((Arc::new(t.clone()), "hash".into()))
+        });
+        let shared = shared_fluids(inner);
+        let (a, _) = shared("nitrogen").expect("nitrogen");
+        let (b, _) = shared("N2").expect("nitrogen by another name");
+        let (c, _) = shared("nitrogen").expect("nitrogen");
+        assert!(Arc::ptr_eq(&a, &b) && Arc::ptr_eq(&a, &c), "one table for every experiment");
+        assert_eq!(copies.load(std::sync::atomic::Ordering::Relaxed), 1);
+        assert!(shared("unobtainium").is_err());
+    }
+
+    #[test]
+    fn only_passing_failures_are_retried() {
+        let api = |status| ClientError::Api { status, code: "x".into(), message: "x".into(), field: None };
+        assert!(is_transient(&api(429)));
+        assert!(is_transient(&api(503)));
+        assert!(is_transient(&ClientError::Transport { url: "u".into(), message: "refused".into() }));
+        assert!(!is_transient(&api(404)));
+        assert!(!is_transient(&api(422)));
     }
 }

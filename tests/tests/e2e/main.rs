@@ -3,5 +3,6 @@
 mod common;
 mod dashboard;
 mod deploy;
+mod hardening;
 mod input;
 mod service;
