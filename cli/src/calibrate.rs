@@ -57,7 +57,11 @@ pub fn load(file: &Path) -> Result<Loaded> {
     let label = file.display().to_string();
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {label}"))?;
     let spec = CalibrationSpec::from_toml(&text, &label)?;
-    // stages and bounds first: they need no other file
+    // sizes first (the pipeline below allocates every stage up front: a stage of 10¹⁴ Morris
+    // trajectories must be refused before that), with the ceilings a coordinator has by default
+    cryofit_server::limits::check_calibration_sizes(&spec, &cryofit_server::limits::Limits::default())
+        .map_err(|e| anyhow!("{label}: {e}"))?;
+    // stages and bounds next: they need no other file
     let space = spec.space().map_err(|e| anyhow!("{label}: {e}"))?;
     let start = default_start(&space);
     let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;

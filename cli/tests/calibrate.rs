@@ -187,6 +187,14 @@ fn bad_calibration_files_are_refused_with_the_field_named() {
         (TWIN.replace("data = \"data.csv\"", "data = \"missing.csv\""), "experiments[0].data: cannot read"),
         (TWIN.to_string(), "station `TS9`"),
         (TWIN.replace("budget = 40", "budget = 3"), "budget"),
+        // sizes are checked before anything is built: a stage this large would abort the process
+        (
+            TWIN.replace(
+                "algorithm = \"cmaes\"\nbudget = 150",
+                "algorithm = \"morris\"\nbudget = 150\ntrajectories = 100000000000000",
+            ),
+            "stages[0].trajectories",
+        ),
     ];
     for (k, (text, expected)) in cases.iter().enumerate() {
         let file = dir.join(format!("bad{k}.toml"));

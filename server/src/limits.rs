@@ -20,6 +20,13 @@ use crate::validate::Invalid;
 /// velocities (one junction more than cells, counted with the cells).
 const PROFILE_VALUES_PER_CELL: f64 = 8.0;
 
+/// [`check_calibration`] for a caller outside the coordinator (the local `cryofit calibrate`,
+/// whose embedded coordinator would see the calibration only after the pipeline is built): the
+/// message names the field and the limit.
+pub fn check_calibration_sizes(spec: &CalibrationSpec, limits: &Limits) -> Result<(), String> {
+    check_calibration(spec, spec.parameters.len(), limits).map_err(|e| e.message)
+}
+
 /// Checks the sizes of a calibration (stages, budgets, optimiser state, evaluation time) against
 /// `limits`; `dim` is the number of free parameters. Errors name the field and the limit.
 pub(crate) fn check_calibration(spec: &CalibrationSpec, dim: usize, limits: &Limits) -> Result<(), Invalid> {
