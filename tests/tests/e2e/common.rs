@@ -88,3 +88,13 @@ pub fn check_history(url: &str, id: i64, budget: usize) {
         assert_eq!(counted[0]["cost"], s["cost"]);
     }
 }
+
+/// The value of a Prometheus counter or gauge without labels (0 when absent).
+pub fn metric(url: &str, name: &str) -> u64 {
+    let text = http().get(format!("{url}/metrics")).send().map(|r| r.text().unwrap_or_default()).unwrap_or_default();
+    let prefix = format!("{name} ");
+    text.lines()
+        .find_map(|l| l.strip_prefix(prefix.as_str()))
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .map_or(0, |v| v as u64)
+}

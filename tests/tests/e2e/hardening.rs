@@ -47,15 +47,6 @@ fn submit_file(dir: &Path, url: &str, file: &Path) -> (bool, String) {
     (status.success(), p.logs())
 }
 
-fn metric(url: &str, name: &str) -> u64 {
-    let text = http().get(format!("{url}/metrics")).send().map(|r| r.text().unwrap_or_default()).unwrap_or_default();
-    let prefix = format!("{name} ");
-    text.lines()
-        .find_map(|l| l.strip_prefix(prefix.as_str()))
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(0, |v| v as u64)
-}
-
 #[test]
 fn oversized_calibrations_are_refused_with_a_4xx_naming_the_field_and_the_coordinator_stays_up() {
     let dir = scratch("oversized");

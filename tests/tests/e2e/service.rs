@@ -57,16 +57,6 @@ fn killed_worker_jobs_are_released_after_lease_expiry() {
     assert!(held == 0 || expired >= 1, "the killed worker held {held} leases, which should have expired");
 }
 
-/// The value of a Prometheus counter or gauge without labels (0 when absent).
-fn metric(url: &str, name: &str) -> u64 {
-    let text = http().get(format!("{url}/metrics")).send().map(|r| r.text().unwrap_or_default()).unwrap_or_default();
-    let prefix = format!("{name} ");
-    text.lines()
-        .find_map(|l| l.strip_prefix(prefix.as_str()))
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(0, |v| v as u64)
-}
-
 #[test]
 fn killed_coordinator_resumes_bit_identically() {
     let (best_ref, params_ref) = undisturbed("reference");
