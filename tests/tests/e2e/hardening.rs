@@ -268,13 +268,13 @@ fn a_worker_retries_a_refused_experiment_download_and_no_job_fails_for_it() {
 fn a_worker_honours_sigterm_within_its_drain_timeout_mid_evaluation() {
     let dir = scratch("drain");
     let server = Server::start(&dir, "serve", "127.0.0.1:0", &dir.join("c.db"), &[]);
-    // a case of 200 cells over 10^5 s with data to the end: one evaluation takes minutes
+    // a case of 100 cells over 10^5 s with data to the end: one evaluation takes a minute or more
     let file = calibration_file(
         &dir,
         "slow",
         "[[stages]]\nalgorithm = \"cmaes\"\nbudget = 6\npopulation = 6\n",
         &[
-            ("cells = 5", "cells = 200"),
+            ("cells = 5", "cells = 100"),
             ("end_s = 8.0", "end_s = 100000.0"),
             ("output_interval_s = 1.0", "output_interval_s = 100.0"),
             ("profile_interval_s = 8.0", "profile_interval_s = 100000.0"),
