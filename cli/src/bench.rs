@@ -7,6 +7,10 @@
 //!
 //! `cryofit bench coordinator --workers N --evaluations M [--json]` measures the coordinator's
 //! throughput with a null model (see [`coordinator`]).
+//!
+//! `cryofit bench envelope [--json] [--params FILE]` runs the NBS line with four fluids, saturated
+//! and subcooled, at four drive pressures and reports which runs complete, how fast and how well
+//! they keep their energy balance (see [`envelope`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -25,6 +29,7 @@ use serde::Serialize;
 use crate::fluid_source;
 
 mod coordinator;
+mod envelope;
 
 /// `cryofit bench` subcommands.
 #[derive(Debug, Subcommand)]
@@ -33,6 +38,8 @@ pub enum BenchCommand {
     Robustness(RobustnessArgs),
     /// Coordinator throughput: HTTP claim → null model → HTTP result → tell → persist.
     Coordinator(coordinator::CoordinatorArgs),
+    /// Operating envelope: the NBS line with four fluids, saturated and subcooled, at four drive pressures.
+    Envelope(envelope::EnvelopeArgs),
 }
 
 /// Arguments of `cryofit bench robustness`.
@@ -57,6 +64,7 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Robustness(args) => robustness(args),
         BenchCommand::Coordinator(args) => coordinator::run(args),
+        BenchCommand::Envelope(args) => envelope::run(args),
     }
 }
 
