@@ -61,7 +61,7 @@ use std::f64::consts::PI;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::closures::{churchill_darcy, presence, smooth_step};
+use crate::closures::{churchill_darcy, smooth_step};
 use crate::fastmath::{cbrt, fourth_root, pow_param};
 use crate::fluids::{FluidConstants, FluidTable, Phase};
 use crate::params::ParameterSet;
@@ -353,6 +353,8 @@ pub const PARAMETER_NAMES: &[&str] = &[
     "boil_gap_chf",
     "boil_gap_mfb",
     "chf_over_mfb",
+    "flash_void_min",
+    "drop_contact_k",
 ];
 
 /// The constants of the closure set, read once from a [`ParameterSet`] (each field's doc starts
@@ -458,6 +460,11 @@ pub struct CryoParams {
     pub boil_gap_mfb: f64,
     /// `chf_over_mfb`: smallest q_chf / max(q_onb, q_mfb).
     pub chf_over_mfb: f64,
+    /// `flash_void_min`: smallest void fraction of the bubbles on which superheated liquid
+    /// flashes.
+    pub flash_void_min: f64,
+    /// `drop_contact_k`: constant of the Forslund–Rohsenow drop–wall contact coefficient.
+    pub drop_contact_k: f64,
     /// Specific gas constant R_g of the fluid, J/(kg K) (Theler's T_chf). Nitrogen unless set
     /// with [`CryoParams::with_fluid`].
     pub gas_constant: f64,
@@ -524,6 +531,8 @@ impl CryoParams {
             boil_gap_chf: g("boil_gap_chf"),
             boil_gap_mfb: g("boil_gap_mfb"),
             chf_over_mfb: g("chf_over_mfb"),
+            flash_void_min: g("flash_void_min"),
+            drop_contact_k: g("drop_contact_k"),
             gas_constant: NITROGEN_GAS_CONSTANT,
             t_critical: NITROGEN_T_CRITICAL,
             ideal_cp_over_r: DIATOMIC_CP_OVER_R,
@@ -1271,8 +1280,12 @@ pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
 /// stratified δ/π (the liquid level of a circle at void fraction α, [`stratified_half_angle`]);
 /// stratified-wavy 1 − 0.5^0.61 (1 − δ/π) (Wojtan's dry angle θ_strat ((G_wavy − G)/(G_wavy −
 /// G_strat))^0.61 at mid-band); annular/intermittent 1; dryout/mist 0; blended with the regime
-/// weights and multiplied by the liquid's presence (0 below `blend_xmin`, 1 above
-/// `blend_xmax`).
+/// weights.
+///
+/// Decision: the fraction is not multiplied by the liquid's presence weight (`blend_xmin`,
+/// `blend_xmax`): those thresholds are numerics and may not carry physics. A vanishing liquid
+/// leaves the wall through the regime map (its flow quality moves the cell into dryout/mist,
+/// where the covered fraction is 0) and the stratified chord (δ/π → 0 with the liquid).
 ///
 /// Decision: the fraction does **not** drop to 0 above T_mfb. "Covered" includes a wall under a
 /// vapour film: the boiling curve already carries film boiling above T_mfb (eq:Bromley,
@@ -1280,12 +1293,12 @@ pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
 /// covered fraction there would remove film boiling altogether. Above T_mfb the heat to the
 /// liquid is the film-boiling flux, below it the nucleate/transition flux; the scheme relaxes
 /// its wetted fraction towards this value with the time constant `tauw`.
-pub fn wetted_fraction(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
+pub fn wetted_fraction(s: &Local, regime: &Regime) -> f64 {
     let beta = 1.0 - void(s);
     let w_strat = stratified_half_angle(beta) / PI;
     let w_wavy = 1.0 - 0.5f64.powf(0.61) * (1.0 - w_strat);
     let w = regime.stratified * w_strat + regime.wavy * w_wavy + regime.annular;
-    (w * presence(beta, p.blend_min, p.blend_max)).clamp(0.0, 1.0)
+    w.clamp(0.0, 1.0)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1324,8 +1337,10 @@ pub struct WallHeat {
 /// wetted h_cb(T_w), no division); h_wg = (1 − wetted) [`gas_convection_htc`]. The boiling
 /// fraction is the smooth step of (T_w − T_s)/(T_onb − T_s): 0 with the wall at or below
 /// saturation, 1 from T_onb on (nucleate, transition and film boiling all evaporate liquid).
-pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64) -> WallHeat {
+pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, regime: &Regime) -> WallHeat {
     let w = if wetted.is_finite() { wetted.clamp(0.0, 1.0) } else { 0.0 };
+    // drops of a dispersed flow that reach the dry part of the wall
+    let h_drops = if s.t_w > s.t_l { (1.0 - w) * regime.dryout * drop_contact_htc(s, p) } else { 0.0 };
     let curve = BoilingCurve::new(s, p, set);
     let a = curve.anchors;
     let (h_liquid, branch) = if s.t_w <= a.t_onb {
@@ -1338,7 +1353,7 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64) ->
     let boiling_fraction = smooth_step((s.t_w - s.t_sat) / (a.t_onb - s.t_sat).max(1e-6));
     WallHeat {
         h_wg: (1.0 - w) * gas_convection_htc(s, p, s.t_w),
-        h_wl: w * h_liquid,
+        h_wl: w * h_liquid + h_drops,
         boiling_fraction,
         q_chf: a.q_chf,
         t_chf: a.t_chf,
@@ -1346,6 +1361,32 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64) ->
         t_onb: a.t_onb,
         regime_code: if w < 1e-3 { REGIME_DRY } else { branch },
     }
+}
+
+/// Drop–wall contact heat transfer of dispersed-flow film boiling, W/(m² K) of wall, for the
+/// flux h (T_w − T_sat) that the drops of a mist take from the dry wall and evaporate with:
+/// Forslund and Rohsenow's coefficient as RELAP5 and TRACE use it above the critical heat flux,
+/// h = K (1 − α)^(2/3) [g ρ_l,sat ρ_g h_lg κ_g³ / ((T_w − T_sat) μ_g d_d)]^(1/4), with K
+/// `drop_contact_k` (0.2552 in the source form), the vapour properties at the film temperature
+/// ([`Local::vap_film`]), d_d the drop diameter of the interface closure and g at least the
+/// boiling correlations' floor. The scheme applies it on the dry share of the perimeter in the
+/// dryout/mist regime; its heat goes to the liquid, which it evaporates. Decision: the heat is
+/// driven by T_w − T_l, the liquid-side difference of the scheme's linearisation, rather than
+/// the source's T_w − T_sat: the drops of a mist are at saturation to within a kelvin, and the
+/// ratio (T_w − T_sat)/(T_w − T_l) that converts one into the other grows without bound where
+/// a superheated liquid meets a wall at its own temperature (a 10-cell subcooled run failed on
+/// it with a pressure of −10¹⁴ Pa).
+pub fn drop_contact_htc(s: &Local, p: &CryoParams) -> f64 {
+    let dt_w = s.t_w - s.t_sat;
+    let beta = 1.0 - void(s);
+    if !(dt_w > 0.0 && beta > 0.0 && s.h_lg > 0.0 && p.drop_contact_k > 0.0) {
+        return 0.0;
+    }
+    let v = &s.vap_film;
+    let d_d = particle_diameter(s.sigma, s.rho_g, relative_speed(s), diameter(s), p.drop_diameter_max);
+    let group = boiling_gravity(s) * s.rho_l_sat * v.rho * s.h_lg * v.k.powi(3) / (dt_w * v.mu * d_d).max(TINY);
+    let h = p.drop_contact_k * beta.powf(2.0 / 3.0) * group.max(0.0).powf(0.25);
+    if h.is_finite() { h } else { 0.0 }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1397,7 +1438,10 @@ fn relative_speed(s: &Local) -> f64 {
 /// | dryout/mist | 6 (1 − α)/d, d = 12 σ/(ρ_g v_r²) ≤ `drop_d_max` | d | ρ_g v_r d/μ_g, Nu_0 = 2 | ρ_l v_r d/μ_l, 6.58 (2π²/3), Nu ≤ 17.9 (Kronig–Brink) |
 ///
 /// e = `hgi0esc` on the gas side and `hli0esc` on the liquid side; the gas side is scaled by
-/// `hgisc`. Both are multiplied by the presence of both phases (no interface without them).
+/// `hgisc`. Every area vanishes with the phase that bounds it (the stratified chord as either
+/// phase fills the tube, the film surface 4√α/D with the gas, the drops' 6β/d with the liquid),
+/// so no presence weight multiplies them: the blending thresholds are numerics and a mist that
+/// carries a real share of the mass at a small volume fraction keeps its whole interface.
 /// `Gisc` scales the resulting interface mass transfer in the scheme
 /// ([`CryoParams::interface_mass_transfer_scale`]).
 pub fn interphase_heat(s: &Local, p: &CryoParams, regime: &Regime) -> Interphase {
@@ -1427,11 +1471,39 @@ pub fn interphase_heat(s: &Local, p: &CryoParams, regime: &Regime) -> Interphase
     let hg_drop = db(re_gd, pr_g, eg, 2.0) * s.k_g.max(0.0) / d_drop;
     let hl_drop = db(re_ld, pr_l, el, NU_DROP_INTERIOR.0).min(NU_DROP_INTERIOR.1) * s.k_l.max(0.0) / d_drop;
 
-    let both = presence(a, p.blend_min, p.blend_max) * presence(beta, p.blend_min, p.blend_max);
+    // flashing: superheated liquid boils on the bubbles it holds
+    let hl_flash = flashing_htc(s, p);
+
     Interphase {
-        h_ig: both * p.gas_interface_scale * (a_pipe * hg_pipe + a_drop * hg_drop),
-        h_il: both * (a_pipe * hl_pipe + a_drop * hl_drop),
+        h_ig: p.gas_interface_scale * (a_pipe * hg_pipe + a_drop * hg_drop),
+        h_il: a_pipe * hl_pipe + a_drop * hl_drop + hl_flash,
     }
+}
+
+/// Liquid-side interphase coefficient of flashing, W/(m³ K): liquid above its saturation
+/// temperature boils on bubbles, a_b = 6 max(α, `flash_void_min`)/d_b with d_b the bubble
+/// diameter of [`bubble_diameter`], and the Plesset–Zwick coefficient of a growing bubble,
+/// h = (k_l/d_b)(12/π) Ja, Ja = ρ_l c_p,l (T_l − T_sat)/(ρ_g,sat h_lg) (RELAP5's bubbly-flow
+/// coefficient for superheated liquid, with its minimum void 10⁻⁵), at least the conduction
+/// limit Nu = 2; faded in over the first kelvin of superheat and out with the bubbly regime
+/// (void fractions 0.1–0.4, as the bubble drag).
+///
+/// Decision: without it a cell filled with liquid has no interface (every other area vanishes
+/// with the vapour), and liquid stretched by an outflow larger than its inflow (vapour collapse
+/// behind a surge) fell to the property table's 1 kPa at 81 K with no vapour forming.
+pub fn flashing_htc(s: &Local, p: &CryoParams) -> f64 {
+    let superheat = s.t_l - s.t_sat;
+    if !(superheat > 0.0 && s.h_lg > 0.0) {
+        return 0.0;
+    }
+    let a = void(s);
+    let bubbly = 1.0 - smooth_step((a - BUBBLY_VOID.0) / (BUBBLY_VOID.1 - BUBBLY_VOID.0));
+    let d_b = bubble_diameter(s);
+    let area = 6.0 * a.max(p.flash_void_min) / d_b;
+    let ja = s.rho_l * s.cp_l * superheat / (s.vap_sat.rho * s.h_lg).max(TINY);
+    let nu = (12.0 / PI * ja).max(2.0);
+    let h = smooth_step(superheat) * bubbly * area * nu * s.k_l.max(0.0) / d_b;
+    if h.is_finite() { h } else { 0.0 }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1454,7 +1526,7 @@ pub fn wall_friction(s: &Local, p: &CryoParams, regime: &Regime, roughness_rel: 
     let d = diameter(s);
     let a_g = void(s);
     let a_l = 1.0 - a_g;
-    let w_l = wetted_fraction(s, p, regime);
+    let w_l = wetted_fraction(s, regime);
     let w_g = 1.0 - w_l;
     let rough = roughness_rel.max(0.0);
     let vg = (s.v_g * s.v_g + V_REG * V_REG).sqrt();
@@ -1519,7 +1591,7 @@ pub fn interfacial_drag(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
     let f_wavy = 0.5 * f_smooth.max(WAVY_FRICTION) * s.rho_g * v_r * a_strat;
 
     let f_wallis = (0.005 * (1.0 + 75.0 * beta)).max(f_smooth);
-    let f_film = 0.5 * f_wallis * s.rho_g * v_r * 4.0 * a.sqrt() / d * presence(beta, p.blend_min, p.blend_max);
+    let f_film = 0.5 * f_wallis * s.rho_g * v_r * 4.0 * a.sqrt() / d;
     let d_b = bubble_diameter(s);
     let re_b = s.rho_l * v_r * d_b / s.mu_l.max(TINY);
     let bubbly = 1.0 - smooth_step((a - BUBBLY_VOID.0) / (BUBBLY_VOID.1 - BUBBLY_VOID.0));
@@ -1544,6 +1616,9 @@ pub fn virtual_mass_coefficient(_s: &Local, p: &CryoParams) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A regime without dryout (no drop contact): the wall-heat tests of the wetted wall.
+    const WET: Regime = Regime { stratified: 0.0, wavy: 0.0, annular: 1.0, dryout: 0.0 };
 
     #[test]
     fn cbrt_constant_is_exact() {
@@ -2160,29 +2235,29 @@ mod tests {
         let p = defaults();
         let s = ln2(0.5, 150.0, 1.0, 0.1);
         let q = boiling_curve(&s, &p, CorrelationSet::Paper);
-        let wh = wall_heat(&s, &p, CorrelationSet::Paper, 0.4);
+        let wh = wall_heat(&s, &p, CorrelationSet::Paper, 0.4, &WET);
         assert!(rel(wh.h_wl * (150.0 - T_SAT), 0.4 * q) < 1e-12);
         assert!(rel(wh.h_wg, 0.6 * gas_convection_htc(&s, &p, 150.0)) < 1e-12);
         assert_eq!(wh.boiling_fraction, 1.0);
         assert!(wh.t_onb < wh.t_chf && wh.t_chf < wh.t_mfb);
-        let dry = wall_heat(&s, &p, CorrelationSet::Paper, 0.0);
+        let dry = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &WET);
         assert_eq!(dry.regime_code, REGIME_DRY);
         assert_eq!(dry.h_wl, 0.0);
         // wall colder than saturation: convection, no boiling
         let mut cold = ln2(0.0, 75.0, 0.0, 0.5);
         cold.t_l = 76.0;
-        let wh = wall_heat(&cold, &p, CorrelationSet::Paper, 1.0);
+        let wh = wall_heat(&cold, &p, CorrelationSet::Paper, 1.0, &WET);
         assert_eq!(wh.regime_code, REGIME_CONVECTION);
         assert_eq!(wh.boiling_fraction, 0.0);
         assert!(rel(wh.h_wl, liquid_convection_htc(&cold, &p, 75.0)) < 1e-12);
         // the boiling fraction rises smoothly from T_s to T_onb
         let s = ln2(0.0, 0.0, 0.0, 0.0);
         let t_onb = onset_of_nucleate_boiling(&s, &p).0;
-        let mid = wall_heat(&Local { t_w: 0.5 * (T_SAT + t_onb), ..s }, &p, CorrelationSet::Paper, 1.0);
+        let mid = wall_heat(&Local { t_w: 0.5 * (T_SAT + t_onb), ..s }, &p, CorrelationSet::Paper, 1.0, &WET);
         assert!((mid.boiling_fraction - 0.5).abs() < 1e-9);
         let codes: Vec<u8> = [T_SAT + 1e-3, 0.5 * (t_onb + 101.7), 110.0, 400.0]
             .iter()
-            .map(|&t| wall_heat(&Local { t_w: t, ..s }, &p, CorrelationSet::Paper, 1.0).regime_code)
+            .map(|&t| wall_heat(&Local { t_w: t, ..s }, &p, CorrelationSet::Paper, 1.0, &WET).regime_code)
             .collect();
         assert_eq!(codes, [REGIME_CONVECTION, REGIME_NUCLEATE, REGIME_TRANSITION, REGIME_FILM]);
     }
@@ -2229,12 +2304,12 @@ mod tests {
         let s = ln2(1.0, 150.0, 5.0, 0.0);
         let r = flow_regime(&s, &p, 0.0);
         assert_eq!(r.dryout, 1.0);
-        assert_eq!(wetted_fraction(&s, &p, &r), 0.0);
+        assert_eq!(wetted_fraction(&s, &r), 0.0);
         // fast flow at moderate quality: annular
         let s = ln2(0.9, 150.0, 20.0, 2.0);
         let r = flow_regime(&s, &p, 0.0);
         assert!(r.annular > 0.99, "{r:?} χ {}", regime_quality(&s));
-        assert!(wetted_fraction(&s, &p, &r) > 0.99);
+        assert!(wetted_fraction(&s, &r) > 0.99);
         // slow flow at moderate quality between the boundaries: wavy
         let s = ln2(0.9, 150.0, 6.0, 0.08);
         let chi = regime_quality(&s);
@@ -2248,7 +2323,7 @@ mod tests {
         assert!(r1.dryout > r0.dryout, "{r0:?} {r1:?}");
         // liquid-full pipe is fully wetted
         let s = ln2(0.0, 150.0, 0.0, 0.0);
-        assert_eq!(wetted_fraction(&s, &p, &flow_regime(&s, &p, 0.0)), 1.0);
+        assert_eq!(wetted_fraction(&s, &flow_regime(&s, &p, 0.0)), 1.0);
     }
 
     // ---------------------------------------------------------------- robustness
@@ -2267,9 +2342,9 @@ mod tests {
                                 s.t_l = t_l;
                                 let r = flow_regime(&s, &p, 1e4);
                                 assert!((r.sum() - 1.0).abs() < 1e-12);
-                                let w = wetted_fraction(&s, &p, &r);
+                                let w = wetted_fraction(&s, &r);
                                 assert!((0.0..=1.0).contains(&w));
-                                let wh = wall_heat(&s, &p, set, w);
+                                let wh = wall_heat(&s, &p, set, w, &r);
                                 let ih = interphase_heat(&s, &p, &r);
                                 let (fg, fl) = wall_friction(&s, &p, &r, 1e-4);
                                 let fi = interfacial_drag(&s, &p, &r);
@@ -2310,8 +2385,8 @@ mod tests {
                 for s in &s_list {
                     for set in CorrelationSet::ALL {
                         let r = flow_regime(s, &p, 2e4);
-                        let w = wetted_fraction(s, &p, &r);
-                        let wh = wall_heat(s, &p, set, w);
+                        let w = wetted_fraction(s, &r);
+                        let wh = wall_heat(s, &p, set, w, &r);
                         let ih = interphase_heat(s, &p, &r);
                         let (fg, fl) = wall_friction(s, &p, &r, 1e-4);
                         let fi = interfacial_drag(s, &p, &r);
@@ -2373,6 +2448,52 @@ mod tests {
         }
     }
 
+    #[test]
+    fn flashing_acts_on_superheated_liquid_only() {
+        let p = CryoParams::from_set(&ParameterSet::new());
+        // a liquid-filled cell: no other interface is left
+        let mut s = ln2(0.0, T_SAT, 0.0, 0.0);
+        assert_eq!(flashing_htc(&s, &p), 0.0, "saturated liquid does not flash");
+        s.t_l = T_SAT - 5.0;
+        assert_eq!(flashing_htc(&s, &p), 0.0, "subcooled liquid does not flash");
+        s.t_l = T_SAT + 5.0;
+        let h = flashing_htc(&s, &p);
+        // Plesset–Zwick on 6 α_min / d_b of bubbles: Ja = 806 · 2041 · 5 / (4.6 · 2e5) ≈ 9
+        let d_b = bubble_diameter(&s);
+        let ja = s.rho_l * s.cp_l * 5.0 / (s.vap_sat.rho * s.h_lg);
+        let expected = 6.0 * p.flash_void_min / d_b * (12.0 / PI * ja) * s.k_l / d_b;
+        assert!((h - expected).abs() < 1e-9 * expected, "{h} vs {expected}");
+        // it is part of the liquid-side interphase coefficient, with no presence weight
+        let ih = interphase_heat(&s, &p, &flow_regime(&s, &p, 0.0));
+        assert!(ih.h_il >= h);
+        // and it fades out with the bubbly regime
+        s.alpha = 0.6;
+        assert_eq!(flashing_htc(&s, &p), 0.0);
+    }
+
+    #[test]
+    fn drop_contact_follows_forslund_rohsenow() {
+        let p = CryoParams::from_set(&ParameterSet::new());
+        let s = ln2(0.99, 250.0, 10.0, 8.0);
+        let h = drop_contact_htc(&s, &p);
+        assert!(h > 0.0);
+        // h ∝ (1 − α)^(2/3) and ∝ K
+        let s2 = Local { alpha: 0.999, ..s };
+        let ratio = drop_contact_htc(&s2, &p) / h;
+        assert!((ratio - (0.001f64 / 0.01).powf(2.0 / 3.0)).abs() < 1e-9, "{ratio}");
+        let mut off = p;
+        off.drop_contact_k = 0.0;
+        assert_eq!(drop_contact_htc(&s, &off), 0.0);
+        // no contact heat below saturation, and none on a wetted wall or outside dryout
+        assert_eq!(drop_contact_htc(&Local { t_w: T_SAT - 1.0, ..s }, &p), 0.0);
+        let mist = Regime { stratified: 0.0, wavy: 0.0, annular: 0.0, dryout: 1.0 };
+        let dry = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &mist);
+        let no_drops = wall_heat(&s, &off, CorrelationSet::Paper, 0.0, &mist);
+        assert!((dry.h_wl - no_drops.h_wl - h).abs() < 1e-9 * h);
+        let wet = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &WET);
+        assert_eq!(wet.h_wl, wall_heat(&s, &off, CorrelationSet::Paper, 0.0, &WET).h_wl);
+    }
+
     // ---------------------------------------------------------------- liveness
 
     /// Every closure output at a set of states covering the regimes and the boiling curve.
@@ -2403,6 +2524,10 @@ mod tests {
         let mut fast = ln2(0.05, 120.0, 0.5, 6.0);
         fast.t_l = 64.0;
         states.push(fast);
+        // liquid 3 K above saturation in a nearly liquid-filled cell: it flashes
+        let mut flashing = ln2(1e-4, 90.0, 0.5, 0.5);
+        flashing.t_l = T_SAT + 3.0;
+        states.push(flashing);
         let mut hot = ln2(0.7, 250.0, 3.0, 0.3);
         hot.h_g += 1124.0 * 60.0;
         states.push(hot);
@@ -2411,10 +2536,10 @@ mod tests {
             for q_wall in [0.0, 3e4] {
                 let r = flow_regime(s, p, q_wall);
                 out.extend([r.stratified, r.wavy, r.annular, r.dryout]);
-                let w = wetted_fraction(s, p, &r);
+                let w = wetted_fraction(s, &r);
                 out.push(w);
                 for set in CorrelationSet::ALL {
-                    let wh = wall_heat(s, p, set, w.max(0.5));
+                    let wh = wall_heat(s, p, set, w.max(0.5), &r);
                     out.extend([wh.h_wg, wh.h_wl, wh.boiling_fraction, wh.q_chf, wh.t_chf, wh.t_mfb, wh.t_onb]);
                     out.push(boiling_curve(s, p, set));
                 }
@@ -2424,8 +2549,15 @@ mod tests {
                 out.extend([fg, fl, interfacial_drag(s, p, &r), virtual_mass_coefficient(s, p)]);
             }
         }
-        // the three scales the scheme applies itself
-        out.extend([p.wall_mass_transfer_scale, p.interface_mass_transfer_scale, p.wetting_time_constant]);
+        // the three scales the scheme applies itself, and the phase-blending thresholds (numerics
+        // of the scheme: no closure reads them)
+        out.extend([
+            p.wall_mass_transfer_scale,
+            p.interface_mass_transfer_scale,
+            p.wetting_time_constant,
+            p.blend_min,
+            p.blend_max,
+        ]);
         out
     }
 

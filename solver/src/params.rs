@@ -508,6 +508,24 @@ pub const REGISTRY: &[ParamSpec] = &[
         unit: "-",
         description: "smallest q_chf / max(q_onb, q_mfb) of the boiling curve; where it binds, qchfsc and the CHF shape have no effect",
     },
+    ParamSpec {
+        name: "flash_void_min",
+        group: "interface",
+        default: 1.0e-5,
+        lower: 1.0e-7,
+        upper: 1.0e-3,
+        unit: "-",
+        description: "smallest void fraction of the bubbles on which superheated liquid flashes (nuclei of a liquid-filled cell; RELAP5's 10⁻⁵)",
+    },
+    ParamSpec {
+        name: "drop_contact_k",
+        group: "film_boiling",
+        default: 0.2552,
+        lower: 0.0,
+        upper: 1.0,
+        unit: "-",
+        description: "constant of the drop–wall contact heat transfer of dispersed-flow film boiling (Forslund–Rohsenow; 0 turns it off)",
+    },
 ];
 
 /// The registry entry of `name`.

@@ -5,7 +5,7 @@
 //! transition and film boiling, stratified and wavy flow, interphase transfer, friction), the same
 //! with the `miropolskii` correlation set (its own film-boiling and rewet parameters) at the
 //! case's flow and, for 300 s, throttled to a low mass flux (where the rewet temperature's
-//! Weber-number terms act), and the
+//! Weber-number terms act), the blowdown of a liquid-filled line (flashing), and the
 //! phase-separation problem (heat exchange without phase change, `hi_vol`).
 
 use cryofit_solver::case::Case;
@@ -24,6 +24,51 @@ fn nbs(correlations: &str, loss: f64) -> Case {
     case.physics.correlations = correlations.to_string();
     case.inlet.loss_coefficient = loss;
     case
+}
+
+/// 10 m of line full of liquid nitrogen at 85 K and 3.4 bar (a void fraction of 10⁻⁶), closed at
+/// the inlet and opened to 0.82 atm at the outlet, for 5 s: the liquid, 9 K above its saturation
+/// temperature at the outlet pressure, flashes.
+fn blowdown() -> Case {
+    let text = r#"
+        title = "blowdown of a liquid-filled line"
+        [fluid]
+        name = "nitrogen"
+        [pipe]
+        length_m = 10.0
+        inner_diameter_m = 0.015875
+        wall_thickness_m = 0.0015875
+        wall_material = "copper"
+        roughness_m = 1.5e-6
+        inclination_deg = 0.0
+        cells = 10
+        [inlet]
+        kind = "closed"
+        [outlet]
+        kind = "pressure"
+        pressure_pa = 83087.0
+        void_fraction = 1.0
+        gas_temperature_k = 290.0
+        [initial]
+        pressure_pa = 336399.0
+        void_fraction = 1e-6
+        gas_temperature_k = 85.0
+        liquid_temperature_k = 85.0
+        wall_temperature_k = 85.0
+        [ambient]
+        temperature_k = 290.0
+        heat_transfer_coefficient_w_m2k = 0.0
+        [time]
+        end_s = 5.0
+        output_interval_s = 0.1
+        profile_interval_s = 1.0
+        max_dt_s = 0.01
+        max_courant = 10.0
+        [[stations]]
+        name = "mid"
+        x_m = 5.0
+    "#;
+    Case::from_toml(text, "blowdown").unwrap()
 }
 
 fn run(case: &Case, params: &ParameterSet) -> Output {
@@ -65,10 +110,13 @@ fn every_parameter_changes_some_output() {
         // a throttled inlet: low mass flux, where the Darr–Hartwig rewet temperature is below
         // its cap at the critical temperature
         ("nbs subcooled, miropolskii set, throttled", {
-            let mut c = nbs("miropolskii", 400.0);
+            let mut c = nbs("miropolskii", 1000.0);
             c.time.end_s = 300.0;
             c
         }),
+        // a liquid-filled line opened to the atmosphere: liquid flashing where it holds no vapour
+        // (the bubble nuclei of `flash_void_min`)
+        ("blowdown", blowdown()),
     ];
     let separation = Reference::Separation.with_cells(10);
     let baselines: Vec<Output> = cases.iter().map(|(_, c)| run(c, &ParameterSet::new())).collect();

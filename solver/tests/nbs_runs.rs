@@ -3,7 +3,7 @@
 //! order, station 4 chills down within 50 % of the measured time, the pressure stays physical,
 //! mass and energy balances close, and the step count stays where the step control put it. VALIDATION.md tabulates the same runs.
 
-use cryofit_solver::case::Case;
+use cryofit_solver::case::{Case, Profile};
 use cryofit_solver::driver;
 use cryofit_solver::fluids;
 
@@ -21,13 +21,17 @@ const RUNS: [(&str, f64); 3] = [("saturated-2.5atm", 245.0), ("saturated-3.4atm"
 /// relative velocity oscillate from step to step, and the 25 % rule held the runs to 12 926 /
 /// 13 980 / 17 890 steps; linearised by Newton they took 8 760 / 8 386 / 11 621. With the boiling
 /// correlations on saturated and film-temperature vapour they take 11 290 / 8 879 / 15 499, the
-/// subcooled run's extra steps held by the 25 % pressure rule in its first-contact surges. A
-/// run above the limit shows where its steps went in `summary.step_limited_by`.
-const MAX_STEPS: u64 = 16_000;
+/// subcooled run's extra steps held by the 25 % pressure rule in its first-contact surges. With
+/// the interface and wall contact of a mist no longer scaled by the phase-blending weight (the
+/// mist evaporates behind the front instead of leaving the line) they take 15 236 / 10 534 /
+/// 18 738, the extra steps held by the gas velocity and pressure rules where the mist flashes.
+/// A run above the limit shows where its steps went in `summary.step_limited_by`.
+const MAX_STEPS: u64 = 20_000;
 
 /// Largest physical energy balance error (residual over the heat the wall gave up). Measured
-/// 8.6e-4 / 2.8e-4 / 2.9e-3: the subcooled run's residual (−9.7 kJ of 3.39 MJ) builds up at
-/// about 60 J/s while two phases flow, and is not yet traced to its term.
+/// 6.5e-4 / 1.25e-3 / 3.0e-3: the subcooled run's residual (−10.0 kJ of 3.39 MJ) builds up at
+/// 50–200 W while two phases flow (1–3 % of the friction heat), a discretisation residual of
+/// the kinetic energy not yet traced to its term (VALIDATION.md).
 const MAX_ENERGY_ERROR: f64 = 3.5e-3;
 
 const STATIONS: [&str; 4] = ["TS1", "TS2", "TS3", "TS4"];
@@ -92,5 +96,77 @@ fn default_closures_chill_the_nbs_line_down_in_order_and_near_the_data() {
             s.wall_heat_j
         );
         assert!(s.trace_adjustment_j <= 3.35e3, "{stem}: trace adjustments {} J", s.trace_adjustment_j);
+    }
+}
+
+/// The shipped case `stem` with the registry defaults and `blend_xmax` = `blend`.
+fn run_with_blend(stem: &str, blend: f64) -> cryofit_solver::driver::Output {
+    let path = format!("{NBS}/{stem}.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let case = Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    let mut params = driver::case_parameters(&case).unwrap();
+    params.set("blend_xmax", blend).unwrap();
+    driver::run(&case, fluids::embedded("nitrogen").unwrap(), &params, &mut |_| {})
+        .unwrap_or_else(|e| panic!("{stem}, blend_xmax = {blend}: {e}"))
+}
+
+/// Phase blending is numerics: its upper threshold from 10⁻⁴ to 10⁻² moves no station-4
+/// chilldown by more than 2 % (measured: 0.05 %, 0.01 % and 1.7 % on the three runs; the
+/// interface, the wall contact and the flashing of a phase are not weighted by it, and the
+/// liquid's presence is its mass share).
+#[test]
+fn station_4_chilldown_does_not_move_with_the_blending_threshold() {
+    for (stem, _) in RUNS {
+        let chill: Vec<f64> = [1e-4, 1e-3, 1e-2]
+            .into_iter()
+            .map(|blend| {
+                let out = run_with_blend(stem, blend);
+                *out.summary
+                    .chilldown_time_s
+                    .get("TS4")
+                    .and_then(|c| c.as_ref())
+                    .unwrap_or_else(|| panic!("{stem}, blend_xmax = {blend}: TS4 never chilled"))
+            })
+            .collect();
+        let (lo, hi) = chill.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &c| (lo.min(c), hi.max(c)));
+        println!("{stem}: TS4 chilldown at blend_xmax 1e-4 / 1e-3 / 1e-2: {chill:.2?}");
+        assert!(hi / lo - 1.0 <= 0.02, "{stem}: TS4 chilldowns {chill:?} spread by more than 2 %");
+    }
+}
+
+/// The NBS line with liquid para-hydrogen (the fluid NBS used): the subcooled case with the
+/// inlet at 19.6 K (saturated at 0.82 atm, then pressurised) and the saturated one at T_sat of
+/// the dewar, line and gas at 290 K, 300 s. Both complete, and the adjustments made outside the
+/// balance equations stay below a thousandth of the line's heat (3.35 kJ; measured 1.7 and
+/// 3.1 kJ). Their energy balance errors (6.5e-3 and 6.7e-3) are above the 10⁻³ goal: the
+/// kinetic-energy residual of the nitrogen runs, larger with hydrogen's fast vapour.
+#[test]
+fn parahydrogen_on_the_nbs_line_completes_with_small_adjustments() {
+    let fluid = fluids::embedded("parahydrogen").unwrap();
+    let path = format!("{NBS}/subcooled-4.2atm.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let base = Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    let p_dewar = match &base.inlet.pressure_pa {
+        Some(Profile::Constant(p)) => *p,
+        other => panic!("the subcooled case's dewar pressure is not a constant: {other:?}"),
+    };
+    let t_sat_dewar = fluid.saturation(p_dewar).unwrap().t_sat;
+    for (label, t_inlet) in [("subcooled", 19.6), ("saturated", t_sat_dewar)] {
+        let mut case = base.clone();
+        case.fluid.name = "parahydrogen".into();
+        case.inlet.temperature_k = Some(Profile::Constant(t_inlet));
+        case.time.end_s = 300.0;
+        case.initial.gas_temperature_k = Profile::Constant(290.0);
+        case.initial.wall_temperature_k = Profile::Constant(290.0);
+        let params = driver::case_parameters(&case).unwrap();
+        let out = driver::run(&case, fluid, &params, &mut |_| {}).unwrap_or_else(|e| panic!("{label}: {e}"));
+        let s = &out.summary;
+        println!(
+            "parahydrogen {label}: {} steps, adjustments {:.0} J, energy balance error {:.2e}",
+            s.steps, s.trace_adjustment_j, s.energy_balance_error
+        );
+        assert!((s.simulated_time_s - 300.0).abs() < 1e-6, "{label}: stopped at {} s", s.simulated_time_s);
+        assert!(s.trace_adjustment_j <= 3.35e3, "{label}: trace adjustments {} J", s.trace_adjustment_j);
+        assert!(s.energy_balance_error <= 1e-2, "{label}: energy balance error {}", s.energy_balance_error);
     }
 }
