@@ -25,14 +25,18 @@ const RUNS: [(&str, f64); 3] = [("saturated-2.5atm", 245.0), ("saturated-3.4atm"
 /// the interface and wall contact of a mist no longer scaled by the phase-blending weight (the
 /// mist evaporates behind the front instead of leaving the line) they take 15 236 / 10 534 /
 /// 18 738, the extra steps held by the gas velocity and pressure rules where the mist flashes.
+/// With the momentum equations' kinetic-energy losses booked as heat they take 16 089 / 10 628
+/// / 19 623 (the subcooled run's extra steps rejected for the volume error that the heat the
+/// pressure equation estimates leaves against the heat step 2 books).
 /// A run above the limit shows where its steps went in `summary.step_limited_by`.
 const MAX_STEPS: u64 = 20_000;
 
-/// Largest physical energy balance error (residual over the heat the wall gave up). Measured
-/// 6.5e-4 / 1.25e-3 / 3.0e-3: the subcooled run's residual (−10.0 kJ of 3.39 MJ) builds up at
-/// 50–200 W while two phases flow (1–3 % of the friction heat), a discretisation residual of
-/// the kinetic energy not yet traced to its term (VALIDATION.md).
-const MAX_ENERGY_ERROR: f64 = 3.5e-3;
+/// Largest physical energy balance error (residual over the heat the wall gave up), every
+/// adjustment counted. Measured 3.5e-4 / 3.0e-4 / 6.0e-4 (−1.0 / −1.0 / −2.0 kJ of 3.4 MJ):
+/// what is left is the implicit time-step loss of kinetic energy and the flow work of the
+/// pressure change within a step (VALIDATION.md). Before the kinetic energy that the momentum
+/// equations' donor-cell terms and drag destroy was booked as heat, 6.5e-4 / 1.25e-3 / 3.0e-3.
+const MAX_ENERGY_ERROR: f64 = 1e-3;
 
 const STATIONS: [&str; 4] = ["TS1", "TS2", "TS3", "TS4"];
 
@@ -137,9 +141,10 @@ fn station_4_chilldown_does_not_move_with_the_blending_threshold() {
 /// The NBS line with liquid para-hydrogen (the fluid NBS used): the subcooled case with the
 /// inlet at 19.6 K (saturated at 0.82 atm, then pressurised) and the saturated one at T_sat of
 /// the dewar, line and gas at 290 K, 300 s. Both complete, and the adjustments made outside the
-/// balance equations stay below a thousandth of the line's heat (3.35 kJ; measured 1.7 and
-/// 3.1 kJ). Their energy balance errors (6.5e-3 and 6.7e-3) are above the 10⁻³ goal: the
-/// kinetic-energy residual of the nitrogen runs, larger with hydrogen's fast vapour.
+/// balance equations stay below a thousandth of the line's heat (3.35 kJ; measured 1.9 and
+/// 3.1 kJ), and the energy balance error, those adjustments counted, below 10⁻³ (measured
+/// 7.2e-4 and 5.7e-4; 6.5e-3 and 6.7e-3 before the momentum equations' kinetic-energy losses
+/// were booked as heat: hydrogen's vapour is fast).
 #[test]
 fn parahydrogen_on_the_nbs_line_completes_with_small_adjustments() {
     let fluid = fluids::embedded("parahydrogen").unwrap();
@@ -167,6 +172,6 @@ fn parahydrogen_on_the_nbs_line_completes_with_small_adjustments() {
         );
         assert!((s.simulated_time_s - 300.0).abs() < 1e-6, "{label}: stopped at {} s", s.simulated_time_s);
         assert!(s.trace_adjustment_j <= 3.35e3, "{label}: trace adjustments {} J", s.trace_adjustment_j);
-        assert!(s.energy_balance_error <= 1e-2, "{label}: energy balance error {}", s.energy_balance_error);
+        assert!(s.energy_balance_error <= 1e-3, "{label}: energy balance error {}", s.energy_balance_error);
     }
 }
