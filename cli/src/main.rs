@@ -87,7 +87,35 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let result = match cli.command {
+    // A reader that closes stdout early (`cryofit params | head`) makes the next print fail;
+    // the standard library reports that as a panic. It is no defect: the reader has what it
+    // wanted. The hook keeps that one quiet, and the run ends as a pipe's writer does.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !is_broken_pipe(info.payload()) {
+            default_hook(info);
+        }
+    }));
+    let result = match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| dispatch(cli.command))) {
+        Ok(result) => result,
+        Err(payload) if is_broken_pipe(payload.as_ref()) => return ExitCode::from(BROKEN_PIPE_EXIT),
+        Err(payload) => std::panic::resume_unwind(payload),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Exit status when stdout was closed under the command: 128 + SIGPIPE, what a shell reports
+/// for a writer that a pipe's reader left.
+const BROKEN_PIPE_EXIT: u8 = 141;
+
+fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Props(args) => props::run(&args),
         Command::Bench(cmd) => bench::run(&cmd),
         Command::Simulate(args) => simulate::run(&args),
@@ -102,12 +130,15 @@ fn main() -> ExitCode {
         Command::Cancel(args) => client::cancel(&args),
         Command::Healthcheck(args) => healthcheck::run(&args),
         Command::Report(args) => report::run(&args),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
     }
+}
+
+/// Whether a panic payload is the standard library's report of a print to a closed stdout.
+fn is_broken_pipe(payload: &(dyn std::any::Any + Send)) -> bool {
+    let message = payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("");
+    message.starts_with("failed printing to stdout") && message.contains("Broken pipe")
 }

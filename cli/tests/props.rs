@@ -140,3 +140,23 @@ fn data_dir_overrides_the_built_in_tables() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("nitrogen.cft"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A reader that closes the pipe before the output is written (`cryofit params --json | head`)
+/// ends the command quietly, as a pipe's writer ends: exit 141 (128 + SIGPIPE), no panic
+/// report. (Should the write land in the pipe before the read end closes, the run simply
+/// succeeds.)
+#[test]
+fn a_closed_stdout_ends_the_command_without_a_panic() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cryofit"))
+        .args(["params", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run cryofit");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait for cryofit");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(matches!(out.status.code(), Some(0 | 141)), "exit {:?}: {stderr}", out.status.code());
+}
