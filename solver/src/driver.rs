@@ -124,7 +124,9 @@ pub struct Summary {
     /// run (trace-phase resets and clamps), J: the sum of their magnitudes, so that additions
     /// and removals do not cancel. The net of them is part of `energy_balance_residual_j`.
     pub trace_adjustment_j: f64,
-    /// Frictional dissipation returned to the fluid as heat over the run, J.
+    /// Kinetic energy the momentum equations turned into heat over the run, J: wall friction, form
+    /// losses, interphase drag and the donor-cell convection's numerical dissipation
+    /// (`scheme::booked_heat`).
     pub dissipation_j: f64,
     /// Why steps were rejected: "variable: reason" and how often (to see what makes a run slow).
     pub rejection_causes: BTreeMap<String, u64>,

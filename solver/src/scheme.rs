@@ -122,7 +122,8 @@ pub struct StepBudget {
     pub wall_heat: f64,
     /// Heat from the ambient into the wall, J.
     pub ambient_heat: f64,
-    /// Frictional dissipation returned to the fluid as heat, J.
+    /// Kinetic energy the momentum equations turned into heat (friction, form losses, drag and
+    /// the donor-cell convection's numerical dissipation), J.
     pub dissipation: f64,
     /// Energy added by state adjustments outside the balance equations (vanishing-phase
     /// resets and clamps), J, net.
