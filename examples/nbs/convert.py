@@ -5,10 +5,13 @@ Usage (from the repository root):
 
     python3 examples/nbs/convert.py SOURCE_DIR [OUT_DIR]
 
-SOURCE_DIR holds the digitized files nbs9264_fig10_ln2_2p5atm.csv, nbs9264_fig11_ln2_3p4atm.csv,
-nbs9264_fig13_ln2_4p2atm.csv and LICENSE-OpenFLUME.txt; OUT_DIR defaults to the directory of this
-script (examples/nbs/). Writes saturated-2.5atm-data.csv, saturated-3.4atm-data.csv,
-subcooled-4.2atm-data.csv and a verbatim copy of LICENSE-OpenFLUME.txt.
+SOURCE_DIR holds the digitized files of the liquid-nitrogen runs (nbs9264_fig10_ln2_2p5atm.csv,
+nbs9264_fig11_ln2_3p4atm.csv, nbs9264_fig13_ln2_4p2atm.csv), of the liquid-hydrogen runs
+(nbs9264_fig02_lh2_5p1atm.csv, nbs9264_fig03_lh2_2p5atm.csv, nbs9264_fig04_lh2_4p2atm.csv) and
+LICENSE-OpenFLUME.txt; OUT_DIR defaults to the directory of this script (examples/nbs/). Writes
+saturated-2.5atm-data.csv, saturated-3.4atm-data.csv, subcooled-4.2atm-data.csv (nitrogen),
+hydrogen-saturated-5.1atm-data.csv, hydrogen-subcooled-2.5atm-data.csv,
+hydrogen-subcooled-4.2atm-data.csv (hydrogen) and a verbatim copy of LICENSE-OpenFLUME.txt.
 
 Each source file is `#` comment lines, then the header `time_s,station_m,T_wall_K` and one row per
 reading. The output keeps the `#` lines as they are, adds two lines (where the file came from, and
@@ -22,11 +25,15 @@ import os
 import shutil
 import sys
 
-# (source file, output file)
+# (source file, output file): the liquid-nitrogen runs (Figs. 10, 11, 13), then the liquid-hydrogen
+# runs (Figs. 2, 3, 4) of the same line.
 FILES = [
     ("nbs9264_fig10_ln2_2p5atm.csv", "saturated-2.5atm-data.csv"),
     ("nbs9264_fig11_ln2_3p4atm.csv", "saturated-3.4atm-data.csv"),
     ("nbs9264_fig13_ln2_4p2atm.csv", "subcooled-4.2atm-data.csv"),
+    ("nbs9264_fig02_lh2_5p1atm.csv", "hydrogen-saturated-5.1atm-data.csv"),
+    ("nbs9264_fig03_lh2_2p5atm.csv", "hydrogen-subcooled-2.5atm-data.csv"),
+    ("nbs9264_fig04_lh2_4p2atm.csv", "hydrogen-subcooled-4.2atm-data.csv"),
 ]
 
 # Wall thermocouple stations: name, position from the supply dewar in m (as written in x_m).
