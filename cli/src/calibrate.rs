@@ -516,7 +516,7 @@ pub fn first_below(times: &[f64], values: &[f64], threshold: f64) -> Option<f64>
 }
 
 /// Chilldown times (wall below the inlet liquid temperature + 15 K) of data and model, per station.
-fn chilldown_pairs(
+pub(crate) fn chilldown_pairs(
     data: &Dataset,
     out: &cryofit_solver::driver::Output,
 ) -> BTreeMap<String, (Option<f64>, Option<f64>)> {
@@ -784,7 +784,7 @@ fn short_quantity(q: &str) -> &str {
 }
 
 /// Four significant digits.
-fn fmt_sig(v: f64) -> String {
+pub(crate) fn fmt_sig(v: f64) -> String {
     if !v.is_finite() {
         return format!("{v}");
     }

@@ -17,6 +17,9 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
 
 use crate::fluid_source;
+use cryofit_calib::cost::Weights;
+use cryofit_calib::data::Dataset;
+use cryofit_calib::model::probes_dataset;
 
 use cryofit_solver::driver::PROBE_QUANTITIES;
 
@@ -40,6 +43,11 @@ pub struct SimulateArgs {
     /// Seed of the noise generator: the same seed gives the same noise.
     #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true)]
     seed: u64,
+    /// Measured data (time_s,station,x_m,quantity,value) to compare the run with: prints the RMS
+    /// per station and quantity and the chilldown times of model and data, and adds them to
+    /// summary.json as `fit`.
+    #[arg(long, value_name = "DATA.csv")]
+    data: Option<PathBuf>,
 }
 
 /// Runs a case and writes `probes.csv`, `profiles.csv` and `summary.json`.
@@ -60,6 +68,36 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         bail!("--out {}: exists and is not a directory", out_dir.display());
     }
     let table = fluid_source::load(&case.fluid.name)?;
+    // read the data before the run: a bad file is reported before minutes of simulation
+    let data = match &args.data {
+        Some(path) => {
+            let file = path.display().to_string();
+            let text = std::fs::read_to_string(path).with_context(|| format!("--data: cannot read {file}"))?;
+            let data = Dataset::from_csv(&text, &file).map_err(|e| anyhow!("--data: {e}"))?;
+            if data.is_empty() {
+                bail!("--data {file}: no readings to compare with");
+            }
+            for (station, quantity) in data.series.keys() {
+                if !case.stations.iter().any(|s| &s.name == station) {
+                    let names: Vec<&str> = case.stations.iter().map(|s| s.name.as_str()).collect();
+                    bail!(
+                        "--data {file}: {quantity} at station `{station}`, which {case_path} does not probe \
+                         (its [[stations]]: {})",
+                        if names.is_empty() { "none".to_string() } else { names.join(", ") }
+                    );
+                }
+            }
+            if data.end_time() > case.time.end_s {
+                bail!(
+                    "--data {file}: readings run to {} s, past the case's time.end_s = {} s",
+                    data.end_time(),
+                    case.time.end_s
+                );
+            }
+            Some((file, data))
+        }
+        None => None,
+    };
 
     let mut bar = ProgressBar::new(std::io::stderr().is_terminal());
     let result = driver::run(&case, &table, &params, &mut |p| bar.update(p));
@@ -67,7 +105,11 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let mut output = result.with_context(|| format!("{case_path}: simulation failed"))?;
 
     add_noise(&mut output.probes, &noise, args.seed);
-    let summary = summary_json(&output, &case_path, &params, &noise, args.seed)?;
+    let comparison = match &data {
+        Some((file, data)) => Some(compare(&output, file, data)?),
+        None => None,
+    };
+    let summary = summary_json(&output, &case_path, &params, &noise, args.seed, comparison.as_ref())?;
     write_outputs(
         &out_dir,
         &[
@@ -77,7 +119,44 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         ],
     )?;
     print_summary(&case, &case_path, &output, &params, &noise, args.seed, &out_dir);
+    if let Some(c) = &comparison {
+        print_comparison(c);
+    }
     Ok(())
+}
+
+/// The run against measured data: RMS per station and quantity, chilldown of model and data.
+#[derive(Debug)]
+struct Comparison {
+    file: String,
+    fit: cryofit_calib::cost::Fit,
+    chilldown: BTreeMap<String, (Option<f64>, Option<f64>)>,
+}
+
+/// Compares the probes with `data` (every quantity of the data, its default σ): the data must lie
+/// within the simulated time at stations the case probes.
+fn compare(output: &Output, file: &str, data: &Dataset) -> Result<Comparison> {
+    let model = probes_dataset(&output.probes);
+    let fit = cryofit_calib::cost::fit(&model, data, &Weights::default())
+        .map_err(|e| anyhow!("--data {file}: {e} (the case's [[stations]] and time.end_s must cover the data)"))?;
+    Ok(Comparison { file: file.to_string(), fit, chilldown: crate::calibrate::chilldown_pairs(data, output) })
+}
+
+fn print_comparison(c: &Comparison) {
+    println!("  against {}:", c.file);
+    for ((station, quantity), s) in &c.fit.series {
+        println!("    {station} {quantity}: RMS {} over {} readings", crate::calibrate::fmt_sig(s.rms), s.points);
+    }
+    for (station, (d, m)) in &c.chilldown {
+        match (d, m) {
+            (Some(d), Some(m)) => {
+                println!("    {station} chilldown: model {m:.1} s, data {d:.1} s ({:+.1} %)", (m / d - 1.0) * 100.0)
+            }
+            (Some(d), None) => println!("    {station} chilldown: data {d:.1} s, model not within the run"),
+            (None, Some(m)) => println!("    {station} chilldown: model {m:.1} s, data not within the readings"),
+            (None, None) => {}
+        }
+    }
 }
 
 /// The parameter set with precedence `--set` > `--params` > the case's `[parameters]` > defaults.
@@ -218,6 +297,7 @@ fn summary_json(
     params: &ParameterSet,
     noise: &BTreeMap<&'static str, f64>,
     seed: u64,
+    comparison: Option<&Comparison>,
 ) -> Result<String> {
     let mut value = serde_json::to_value(&output.summary)?;
     let obj = value.as_object_mut().context("the run summary is not a JSON object")?;
@@ -225,6 +305,19 @@ fn summary_json(
     obj.insert("parameters".into(), serde_json::to_value(params.explicit())?);
     obj.insert("noise".into(), serde_json::to_value(noise)?);
     obj.insert("seed".into(), seed.into());
+    if let Some(c) = comparison {
+        let series: Vec<serde_json::Value> = c
+            .fit
+            .series
+            .iter()
+            .map(|((station, quantity), s)| {
+                serde_json::json!({"station": station, "quantity": quantity, "rms": s.rms, "points": s.points})
+            })
+            .collect();
+        let chilldown: BTreeMap<&String, serde_json::Value> =
+            c.chilldown.iter().map(|(st, (d, m))| (st, serde_json::json!({"data_s": d, "model_s": m}))).collect();
+        obj.insert("fit".into(), serde_json::json!({"data": c.file, "series": series, "chilldown": chilldown}));
+    }
     let mut text = serde_json::to_string_pretty(&value)?;
     text.push('\n');
     Ok(text)

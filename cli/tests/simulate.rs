@@ -350,3 +350,53 @@ fn params_lists_the_registry() {
     assert_eq!(lines.count(), list.len());
     assert!(text.lines().any(|l| l.starts_with("vm_coeff ")), "{text}");
 }
+
+/// `--data` compares the run with measurements: a run against its own probes fits exactly; against
+/// the same probes with noise on one quantity, only that quantity's RMS moves, by about the noise;
+/// the comparison is printed and kept in summary.json; data the case does not probe is refused
+/// with the file and the station named, before anything is written.
+#[test]
+fn data_compares_the_run_with_measurements() {
+    let tmp = Scratch::new("data");
+    let case = tmp.write("fast.toml", &fast_faucet());
+    let run = |dir: &str, extra: &[&str]| -> (PathBuf, Output) {
+        let out_dir = tmp.path(dir);
+        let mut args = vec!["simulate", case.as_str(), "--out", out_dir.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let out = cryofit(&args);
+        assert_success(&out);
+        (out_dir, out)
+    };
+    let (clean, _) = run("clean", &[]);
+    let (noisy, _) = run("noisy", &["--noise", "void_fraction=0.01", "--seed", "5"]);
+
+    let own = clean.join("probes.csv");
+    let (dir, out) = run("own", &["--data", own.to_str().unwrap()]);
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("against ") && stdout.contains("RMS 0 over"), "{stdout}");
+    let fit = &summary(&dir)["fit"];
+    let series = fit["series"].as_array().expect("fit.series");
+    assert!(!series.is_empty());
+    assert!(series.iter().all(|s| s["rms"] == 0.0), "{series:?}");
+
+    let noisy_data = noisy.join("probes.csv");
+    let (dir, _) = run("against-noisy", &["--data", noisy_data.to_str().unwrap()]);
+    let fit = &summary(&dir)["fit"];
+    for s in fit["series"].as_array().unwrap() {
+        let rms = s["rms"].as_f64().unwrap();
+        if s["quantity"] == "void_fraction" {
+            assert!(rms > 0.003 && rms < 0.03, "void fraction RMS {rms} against noise of σ = 0.01");
+        } else {
+            assert_eq!(rms, 0.0, "{s}");
+        }
+    }
+
+    let bad = tmp.write("bad.csv", "time_s,station,x_m,quantity,value\n0,elsewhere,1.0,pressure_pa,1e5\n");
+    let out_dir = tmp.path("refused");
+    assert_one_line_error(
+        &["simulate", case.as_str(), "--out", out_dir.to_str().unwrap(), "--data", bad.as_str()],
+        &["--data", "bad.csv", "elsewhere"],
+    );
+    assert!(!out_dir.exists(), "a refused comparison wrote {}", out_dir.display());
+    assert_one_line_error(&["simulate", case.as_str(), "--data", "/nonexistent/data.csv"], &["--data", "data.csv"]);
+}
