@@ -272,8 +272,8 @@ struct Work {
     sg_used: Vec<f64>,
     sl_used: Vec<f64>,
     reset: Vec<bool>,
-    diss_g: Vec<f64>,
-    diss_l: Vec<f64>,
+    /// Per junction: the heat its momentum forces put into the fluid, W/m³ ([`booked_heat`]).
+    junction_heat: Vec<f64>,
     vt_g: Vec<f64>,
     vt_l: Vec<f64>,
     w_g: Vec<f64>,
@@ -382,8 +382,7 @@ impl<'a> Scheme<'a> {
             w.lower[j] = Matrix2::zeros();
             w.upper[j] = Matrix2::zeros();
             if let Some((vg, vl)) = prescribed(j) {
-                w.diss_l[j] = 0.0;
-                w.mech[j] = JunctionWork { up: [j; 2], ..JunctionWork::default() };
+                w.mech[j] = JunctionWork::default();
                 w.alpha_mom[j] = None;
                 w.diag[j] = Matrix2::identity();
                 w.rhs2[j] = Vector2::new(vg, vl);
@@ -455,46 +454,40 @@ impl<'a> Scheme<'a> {
                 fric: [jc.fric_g, jc.fric_l],
                 drag: jc.drag,
                 drag_explicit: jc.drag_explicit,
-                conv: [0.0; 2],
-                up: [j; 2],
+                conv: [None; 2],
             };
             for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
                 let old_v = |jj: usize| if k == 0 { s.v_g[jj] } else { s.v_l[jj] };
-                let bernoulli = |v_up: f64| ar * (0.5 * (v + v_up)).abs() / dxj;
-                if v >= 0.0 {
-                    if j > 0 {
-                        let c = if g.area_junction[j - 1] != g.area_junction[j] {
-                            bernoulli(old_v(j - 1))
+                let upstream = if v >= 0.0 { j.checked_sub(1) } else { (j < n).then_some(j + 1) };
+                match upstream {
+                    Some(up) => {
+                        let c = if g.area_junction[up] != g.area_junction[j] {
+                            ar * (0.5 * (v + old_v(up))).abs() / dxj
                         } else {
                             let c = ar * v.abs() / dxj;
-                            work.conv[k] = c;
-                            work.up[k] = j - 1;
+                            // (a phase at rest carries no kinetic energy through the term)
+                            work.conv[k] = (c > 0.0).then_some((c, up));
                             c
                         };
                         diag[(k, k)] += c;
-                        w.lower[j][(k, k)] -= c;
-                    } else if inlet0.kind == BoundaryKind::Reservoir {
-                        diag[(k, k)] += 0.5 * ar * v.abs() / dxj;
+                        if up < j {
+                            w.lower[j][(k, k)] -= c;
+                        } else {
+                            w.upper[j][(k, k)] -= c;
+                        }
                     }
-                    // other inlets carry the junction's own velocity: no convective acceleration
-                } else if j < n {
-                    let c = if g.area_junction[j + 1] != g.area_junction[j] {
-                        bernoulli(old_v(j + 1))
-                    } else {
-                        let c = ar * v.abs() / dxj;
-                        work.conv[k] = c;
-                        work.up[k] = j + 1;
-                        c
-                    };
-                    diag[(k, k)] += c;
-                    w.upper[j][(k, k)] -= c;
-                } else if outlet0.kind == BoundaryKind::Reservoir {
-                    diag[(k, k)] += 0.5 * ar * v.abs() / dxj;
+                    // out of a reservoir; other boundaries carry the junction's own velocity
+                    // (no convective acceleration)
+                    None => {
+                        let b = if v >= 0.0 { inlet0 } else { outlet0 };
+                        if b.kind == BoundaryKind::Reservoir {
+                            diag[(k, k)] += 0.5 * ar * v.abs() / dxj;
+                        }
+                    }
                 }
             }
             w.mech[j] = work;
             w.alpha_mom[j] = Some((jc.a_g, jc.a_l));
-            w.diss_l[j] = 0.0;
             w.diag[j] = diag;
             w.rhs2[j] = rhs;
         }
@@ -525,10 +518,10 @@ impl<'a> Scheme<'a> {
         // the pressure equation's estimate of the heat of the step: the same work with the
         // provisional velocities and the old masses (step 2 books it with the new ones; the
         // closer the two, the smaller the volume error the difference leaves)
+        let mass = [s.m_g.as_slice(), s.m_l.as_slice()];
         for j in 0..nj {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
-            let mass = [s.m_g.as_slice(), s.m_l.as_slice()];
-            w.diss_g[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j));
+            w.junction_heat[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j));
         }
 
         // ---- Step 1c: per-cell 4×4 systems → tridiagonal pressure equation ----
@@ -570,7 +563,7 @@ impl<'a> Scheme<'a> {
             r[2] = lambda * (s.e_g[i] - a * gp.rho * gp.u);
             r[3] = lambda * (s.e_l[i] - b * lp.rho * lp.u);
             // frictional dissipation (from the old velocities; step 2 adds the same heat)
-            let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
+            let (heat_g, heat_l) = self.dissipation_split(s, &w.junction_heat, i);
             w.heat_g[i] = heat_g;
             w.heat_l[i] = heat_l;
             r[2] += dt * heat_g / v;
@@ -736,14 +729,14 @@ impl<'a> Scheme<'a> {
         }
         // the heat of the step: the work the momentum equations' forces did on the new
         // velocities, with the new donor masses
+        let v1 = [next.v_g.as_slice(), next.v_l.as_slice()];
         for j in 0..nj {
-            let v1 = [next.v_g.as_slice(), next.v_l.as_slice()];
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             let mass = [w.mass_g.as_slice(), w.mass_l.as_slice()];
-            w.diss_g[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j));
+            w.junction_heat[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j));
         }
         for i in 0..n {
-            let (heat_g, heat_l) = self.dissipation_split(s, &w.diss_g, i);
+            let (heat_g, heat_l) = self.dissipation_split(s, &w.junction_heat, i);
             w.heat_g[i] = heat_g;
             w.heat_l[i] = heat_l;
         }
@@ -1594,12 +1587,11 @@ fn booked_heat(m: &JunctionWork, j: usize, v1: [&[f64]; 2], vt: [&[f64]; 2], mas
     let r1 = g1 - l1;
     let mut heat = m.fric[0] * g1 * g1 + m.fric[1] * l1 * l1 + (m.drag * r1 - m.drag_explicit) * r1;
     for k in 0..2 {
-        if m.conv[k] > 0.0 {
-            let up = m.up[k];
+        if let Some((c, up)) = m.conv[k] {
             let (v, v_up, vt_up) = (v1[k][j], v1[k][up], vt[k][up]);
             let cell = if up < j { j - 1 } else { j };
             let carried = mass[k][cell].max(0.0) * v.abs() / dx_j;
-            heat += m.conv[k] * (v - vt_up) * v - 0.5 * carried * (v * v - v_up * v_up);
+            heat += c * (v - vt_up) * v - 0.5 * carried * (v * v - v_up * v_up);
         }
     }
     heat
@@ -1651,11 +1643,10 @@ struct JunctionWork {
     drag: f64,
     /// Explicit part of the Newton-linearised drag, N/m³.
     drag_explicit: f64,
-    /// Donor-cell convection coefficients m_up |v| / Δx of gas and liquid, kg/(m³ s) (0 where
-    /// the term has another form).
-    conv: [f64; 2],
-    /// The upstream junction of each phase's donor-cell term.
-    up: [usize; 2],
+    /// Gas and liquid donor-cell convection: the coefficient α ρ |v| / Δx (junction mean α ρ),
+    /// kg/(m³ s), and the upstream junction; `None` where the term has a Bernoulli form or there
+    /// is no upstream junction.
+    conv: [Option<(f64, usize)>; 2],
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -1681,7 +1672,7 @@ fn resize(w: &mut Work, n: usize) {
     let nj = n + 1;
     let m = nj.max(n);
     w.mech.resize(nj, JunctionWork::default());
-    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.diss_g, &mut w.diss_l] {
+    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.junction_heat] {
         v.resize(nj, 0.0);
     }
     for v in [&mut w.a, &mut w.b, &mut w.c, &mut w.d, &mut w.s] {
