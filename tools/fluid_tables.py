@@ -69,6 +69,8 @@ MARGIN_INTERVALS = 2  # extra grid intervals computed past that reach
 # A metastable row ends where dp/drho|T has fallen below this fraction of its value on the
 # saturation line: beyond it c_p and the compressibility diverge towards the spinodal.
 SPINODAL_FRACTION = 0.02
+# ... or where du/dT|p has risen to this multiple of its value at the row's first metastable node.
+SPINODAL_DUDT_RISE = 10.0
 # Metastable rows that end at the spinodal drop their nodes closer to it than this fraction of Tc.
 SPINODAL_MARGIN_TC = 0.01
 PROPS = ("rho", "u", "cp", "mu", "k")
@@ -91,15 +93,29 @@ def axis_nodes(segs):
     return np.array(nodes)
 
 
-def fluid_axes(cp_name):
+# Tables whose interpolants the solver's loader cannot keep thermodynamically stable at the
+# base spacing near the critical point (solver/tests/fluid_stability.rs finds them): there the
+# temperature spacing from 0.97 Tc to 1.06 Tc is divided by this factor. The base grid's nodes
+# stay where they were, so states away from the critical point interpolate exactly as before.
+NEAR_CRITICAL_REFINE = {"oxygen": 4, "methane": 4}
+
+
+def fluid_axes(cp_name, refine=1):
     """Grids per fluid: fine temperature spacing up to 1.3 Tc, coarser above."""
     a = CP.AbstractState("HEOS", cp_name)
     ttr, tc, pc = a.Ttriple(), a.T_critical(), a.p_critical()
     t_fine_end = 1.3 * tc
     # roughly 200 fine intervals below 1.3 Tc, then ~4 % of Tc up to 2.2 Tc, then ~8 K
     fine = (t_fine_end - ttr) / 200.0
-    t_breaks = [ttr, t_fine_end]
-    t_steps = [fine]
+    if refine > 1:
+        # break points on nodes of the base grid, so that no base node moves
+        k_lo = math.floor((0.97 * tc - ttr) / fine)
+        k_hi = math.ceil((1.06 * tc - ttr) / fine)
+        t_breaks = [ttr, ttr + k_lo * fine, ttr + k_hi * fine, t_fine_end]
+        t_steps = [fine, fine / refine, fine]
+    else:
+        t_breaks = [ttr, t_fine_end]
+        t_steps = [fine]
     if 2.2 * tc < T_MAX:
         t_breaks += [2.2 * tc, T_MAX]
         t_steps += [0.04 * tc, 8.0]
@@ -322,6 +338,7 @@ def build_phase(cp_name, phase, p_nodes, t_nodes, sat, t_step_at):
         spinodal = None
         last_good = None  # (T, rho, dp/drho) of the last node on the row
         last_dpdrho = None
+        dudt_ref = None  # du/dT|p at the row's first metastable node
         for j in order:
             t = t_nodes[j]
             if phase == "liquid" and t > limit + 1e-9:
@@ -358,9 +375,16 @@ def build_phase(cp_name, phase, p_nodes, t_nodes, sat, t_step_at):
                     # Deeper into the metastable region dp/drho|T falls monotonically to zero
                     # at the spinodal. A rise means the iteration has slipped onto one of the
                     # spurious loops a multiparameter EOS has inside the two-phase dome.
+                    # Near the spinodal du/dT|p diverges too, and on a row that the triple
+                    # point ends before dp/drho|T has fallen far (methane gas at 125 kPa, 24 K
+                    # below saturation: du/dT|p 36 times its value near saturation) the
+                    # interpolant between that row and the next cannot follow it.
+                    if dudt_ref is None:
+                        dudt_ref = data["u"][2]
                     ended = (dpdrho < SPINODAL_FRACTION * dpdrho_ref
                              or (last_dpdrho is not None and dpdrho > last_dpdrho)
-                             or abs(rho - rho_guess) > 0.2 * rho_guess)
+                             or abs(rho - rho_guess) > 0.2 * rho_guess
+                             or data["u"][2] > SPINODAL_DUDT_RISE * dudt_ref)
             if ended:
                 if metastable and last_good is not None:
                     spinodal = locate_spinodal(eos, p, last_good, t)
@@ -484,7 +508,7 @@ def melting_nodes(cp_name, p_nodes, ttr):
 
 def write_table(name, cp_name, human, out_dir):
     sat = Saturation(cp_name)
-    p_segs, t_segs = fluid_axes(cp_name)
+    p_segs, t_segs = fluid_axes(cp_name, NEAR_CRITICAL_REFINE.get(name, 1))
     p_nodes, t_nodes = axis_nodes(p_segs), axis_nodes(t_segs)
 
     def t_step_at(t):

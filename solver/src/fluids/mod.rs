@@ -25,7 +25,7 @@
 mod hermite;
 mod table;
 
-pub use table::{FluidConstants, FluidTable, PhaseProps, Saturation, StableState};
+pub use table::{FluidConstants, FluidTable, LimiterReport, PhaseProps, Saturation, StabilityViolation, StableState};
 
 use std::fmt;
 use std::sync::OnceLock;

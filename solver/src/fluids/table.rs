@@ -5,6 +5,10 @@ use serde::Deserialize;
 use super::hermite::{Axis, Hermite1, SegmentSpec, Weights};
 use super::{FluidError, Phase};
 
+mod stability;
+
+pub use stability::{LimiterReport, StabilityViolation};
+
 const MAGIC: &[u8; 8] = b"CRYOFLT1";
 const FORMAT_VERSION: u32 = 1;
 /// Tabulated properties per node, in this order.
@@ -235,6 +239,8 @@ pub struct FluidTable {
     sat_p: Hermite1,
     sat_t: Hermite1,
     melt: Vec<f64>,
+    /// Node slopes the loader limited to keep the interpolants stable.
+    limiter: LimiterReport,
 }
 
 fn format_err(msg: impl Into<String>) -> FluidError {
@@ -388,7 +394,7 @@ impl FluidTable {
             metastable_k: header.metastable_k,
         };
         let [liquid, gas]: [PhaseTable; 2] = phases.try_into().expect("two phases");
-        Ok(Self {
+        let mut table = Self {
             constants,
             p_axis,
             t_axis,
@@ -396,7 +402,10 @@ impl FluidTable {
             sat_p: Hermite1 { x: sat_p_x, values: sat_p_v, columns: 6 },
             sat_t: Hermite1 { x: sat_t_x, values: sat_t_v, columns: 1 },
             melt,
-        })
+            limiter: LimiterReport::default(),
+        };
+        table.limiter = table.enforce_stability();
+        Ok(table)
     }
 
     /// Fluid constants and table limits.
