@@ -28,7 +28,8 @@ use cryofit_calib::{Evaluation, Outcome};
 use rand::Rng;
 use tokio::sync::Mutex;
 
-use crate::db::{self, Db, DbError, Tx, now_ms};
+use crate::clock::now_ms;
+use crate::db::{self, Db, DbError, Tx};
 use crate::metrics::Metrics;
 
 /// Tunables of the driver and the leases.
@@ -222,9 +223,9 @@ impl Coordinator {
     /// (with the reason) instead of stopping the coordinator.
     pub async fn load(db: Db, settings: CoordinatorSettings, metrics: Arc<Metrics>) -> Result<Self, DbError> {
         let mut running = BTreeMap::new();
-        for (id, state) in db::running_states(db.reader()).await? {
+        for db::RunningState { id, pipeline_state_json } in db::running_states(db.reader()).await? {
             let row = db::calibration(db.reader(), id).await?;
-            match resume(&row, &state) {
+            match resume(&row, &pipeline_state_json) {
                 Ok(r) => {
                     tracing::info!(calibration = id, evaluations = r.pipeline.evaluations().0, "resuming calibration");
                     running.insert(id, r);

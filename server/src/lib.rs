@@ -8,6 +8,7 @@
 
 #![warn(missing_docs)]
 
+mod clock;
 pub mod coordinator;
 pub mod dashboard;
 pub mod db;

@@ -12,9 +12,9 @@
 use std::time::Duration;
 
 use rand::Rng;
-use sqlx::Row;
 
-use crate::db::{Db, DbError, now_ms};
+use crate::clock::{now_ms, utc};
+use crate::db::{self, Db, DbError};
 
 /// A held lock.
 #[derive(Debug, Clone)]
@@ -69,8 +69,11 @@ fn gone(pid: i64) -> bool {
     proc.join("self").exists() && !proc.join(pid.to_string()).exists()
 }
 
-fn unwritable(e: sqlx::Error) -> LockError {
-    LockError::Unwritable(e.to_string())
+fn unwritable(e: DbError) -> LockError {
+    match e {
+        DbError::Sqlx(e) => LockError::Unwritable(e.to_string()),
+        other => LockError::Unwritable(other.to_string()),
+    }
 }
 
 impl DbLock {
@@ -80,35 +83,22 @@ impl DbLock {
         let host = host_name();
         let pid = i64::from(std::process::id());
         let now = now_ms();
-        let mut tx = db.writer().begin_with("BEGIN IMMEDIATE").await.map_err(unwritable)?;
-        let row = sqlx::query("SELECT host, pid, address, started, expires FROM coordinator_lock WHERE id = 1")
-            .fetch_optional(&mut *tx)
-            .await
-            .map_err(DbError::from)?;
-        if let Some(r) = row {
-            let (h, p, a, started, expires): (String, i64, String, i64, i64) =
-                (r.get(0), r.get(1), r.get(2), r.get(3), r.get(4));
-            let dead = h == host && (p == pid || gone(p));
-            if expires > now && !dead {
-                return Err(LockError::Held { host: h, pid: p, address: a, since: crate::dashboard::utc(started) });
+        let mut tx = db.begin().await.map_err(unwritable)?;
+        if let Some(r) = db::lock::holder(&mut tx).await? {
+            let dead = r.host == host && (r.pid == pid || gone(r.pid));
+            if r.expires > now && !dead {
+                return Err(LockError::Held { host: r.host, pid: r.pid, address: r.address, since: utc(r.started) });
             }
-            tracing::warn!(host = %h, pid = p, address = %a, "taking over the lock of a coordinator that stopped without releasing it");
+            tracing::warn!(host = %r.host, pid = r.pid, address = %r.address, "taking over the lock of a coordinator that stopped without releasing it");
         }
-        sqlx::query(
-            "INSERT INTO coordinator_lock (id, holder, host, pid, address, started, expires) VALUES (1, ?, ?, ?, ?, ?, ?)
-             ON CONFLICT (id) DO UPDATE SET holder = excluded.holder, host = excluded.host, pid = excluded.pid,
-                 address = excluded.address, started = excluded.started, expires = excluded.expires",
+        let expires = now + ttl.as_millis() as i64;
+        db::lock::take(
+            &mut tx,
+            &db::lock::NewLock { holder: &holder, host: &host, pid, address, started: now, expires },
         )
-        .bind(&holder)
-        .bind(&host)
-        .bind(pid)
-        .bind(address)
-        .bind(now)
-        .bind(now + ttl.as_millis() as i64)
-        .execute(&mut *tx)
         .await
         .map_err(unwritable)?;
-        tx.commit().await.map_err(unwritable)?;
+        db.commit(tx).await.map_err(unwritable)?;
         tracing::info!(%host, pid, "took the database lock");
         Ok(Self { holder, ttl })
     }
@@ -123,14 +113,9 @@ impl DbLock {
     pub async fn renew(&self, db: &Db) -> Result<(), String> {
         let write = async {
             let mut tx = db.begin().await?;
-            let done = sqlx::query("UPDATE coordinator_lock SET expires = ? WHERE id = 1 AND holder = ?")
-                .bind(now_ms() + self.ttl.as_millis() as i64)
-                .bind(&self.holder)
-                .execute(&mut *tx)
-                .await
-                .map_err(DbError::from)?;
+            let changed = db::lock::renew(&mut tx, &self.holder, now_ms() + self.ttl.as_millis() as i64).await?;
             db.commit(tx).await?;
-            Ok::<_, DbError>(done.rows_affected())
+            Ok::<_, DbError>(changed)
         };
         match write.await {
             Ok(1) => Ok(()),
@@ -143,11 +128,7 @@ impl DbLock {
     pub async fn release(&self, db: &Db) {
         let done = async {
             let mut tx = db.begin().await?;
-            sqlx::query("DELETE FROM coordinator_lock WHERE id = 1 AND holder = ?")
-                .bind(&self.holder)
-                .execute(&mut *tx)
-                .await
-                .map_err(DbError::from)?;
+            db::lock::release(&mut tx, &self.holder).await?;
             db.commit(tx).await
         };
         if let Err(e) = done.await {
