@@ -9,201 +9,28 @@
 #![warn(missing_docs)]
 
 mod clock;
+pub mod config;
 pub mod coordinator;
 pub mod dashboard;
 pub mod db;
 pub mod figures;
+mod fluids;
 pub mod limits;
 pub mod lock;
 pub mod metrics;
 mod openapi;
 mod routes;
+pub mod telemetry;
 mod validate;
 
 use std::future::Future;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::Duration;
 
-use cryofit_solver::fluids::FluidTable;
-
+pub use config::{DEFAULT_BODY_LIMIT, DEFAULT_LOCK_TTL, DEFAULT_SESSION_TTL, Secret, ServeArgs, Settings};
 pub use coordinator::{Coordinator, CoordinatorSettings};
+pub use fluids::{FluidLoader, embedded_fluids};
 pub use routes::router;
-
-/// Loads a fluid table by name and returns it with [`cryofit_api::fluid_hash`] of its bytes.
-pub type FluidLoader = Arc<dyn Fn(&str) -> Result<(Arc<FluidTable>, String), String> + Send + Sync>;
-
-/// The tables built into the binary, hashed; each copied out once and shared afterwards.
-pub fn embedded_fluids() -> FluidLoader {
-    let loaded: std::sync::Mutex<std::collections::HashMap<&'static str, (Arc<FluidTable>, String)>> =
-        Default::default();
-    Arc::new(move |name: &str| {
-        let canon = cryofit_solver::fluids::canonical_name(name).ok_or_else(|| format!("unknown fluid `{name}`"))?;
-        let mut map = loaded.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        if let Some((t, h)) = map.get(canon) {
-            return Ok((t.clone(), h.clone()));
-        }
-        let table = cryofit_solver::fluids::embedded(canon).map_err(|e| e.to_string())?;
-        let bytes = cryofit_solver::fluids::embedded_bytes(canon).ok_or_else(|| format!("unknown fluid `{name}`"))?;
-        let v = (Arc::new(table.clone()), cryofit_api::fluid_hash(bytes));
-        map.insert(canon, v.clone());
-        Ok(v)
-    })
-}
-
-/// A secret that never shows in `Debug` output ([`secrecy::SecretString`]), compared in constant
-/// time ([`subtle`]).
-#[derive(Clone)]
-pub struct Secret(secrecy::SecretString);
-
-impl Secret {
-    /// Wraps a secret.
-    pub fn new(s: impl Into<String>) -> Self {
-        Self(secrecy::SecretString::from(s.into()))
-    }
-
-    /// Compares in time independent of where the first difference is.
-    pub fn matches(&self, other: &str) -> bool {
-        use secrecy::ExposeSecret as _;
-        use subtle::ConstantTimeEq as _;
-        self.0.expose_secret().as_bytes().ct_eq(other.as_bytes()).into()
-    }
-
-    /// True when both hold the same secret.
-    pub fn same_as(&self, other: &Secret) -> bool {
-        use secrecy::ExposeSecret as _;
-        self.matches(other.0.expose_secret())
-    }
-}
-
-impl std::fmt::Debug for Secret {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("Secret(***)")
-    }
-}
-
-/// The coordinator's settings.
-#[derive(Clone)]
-pub struct Settings {
-    /// SQLite database: `sqlite://PATH` or a path; created if absent.
-    pub database_url: String,
-    /// Token of clients (submit, read, cancel).
-    pub client_token: Option<Secret>,
-    /// Token of workers (claim, heartbeat, result, read experiments).
-    pub worker_token: Option<Secret>,
-    /// Largest request body, bytes.
-    pub body_limit: usize,
-    /// Driver and lease settings.
-    pub coordinator: CoordinatorSettings,
-    /// How often the reaper looks for expired leases.
-    pub reaper_interval: Duration,
-    /// Fluid tables (for validating experiments and recording table hashes).
-    pub fluids: FluidLoader,
-    /// Ceilings on what one request can size.
-    pub limits: limits::Limits,
-    /// Mark the dashboard's session cookie `Secure` (served behind TLS).
-    pub secure_cookies: bool,
-    /// How long a dashboard session lasts after signing in.
-    pub session_ttl: Duration,
-    /// How long the database lock lasts without renewal (another coordinator may take over a
-    /// lock older than this whose holder it cannot see).
-    pub lock_ttl: Duration,
-}
-
-impl std::fmt::Debug for Settings {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Settings")
-            .field("database_url", &self.database_url)
-            .field("client_token", &self.client_token)
-            .field("worker_token", &self.worker_token)
-            .field("body_limit", &self.body_limit)
-            .field("coordinator", &self.coordinator)
-            .field("reaper_interval", &self.reaper_interval)
-            .field("limits", &self.limits)
-            .field("secure_cookies", &self.secure_cookies)
-            .field("session_ttl", &self.session_ttl)
-            .field("lock_ttl", &self.lock_ttl)
-            .finish_non_exhaustive()
-    }
-}
-
-/// Default body limit: 16 MiB.
-pub const DEFAULT_BODY_LIMIT: usize = 16 * 1024 * 1024;
-
-/// Default lifetime of a dashboard session: 12 hours.
-pub const DEFAULT_SESSION_TTL: Duration = Duration::from_secs(12 * 3600);
-
-/// Default lifetime of the database lock without renewal: 15 s (renewed every 3 s).
-pub const DEFAULT_LOCK_TTL: Duration = Duration::from_secs(15);
-
-impl Settings {
-    /// Defaults for a database, with the embedded fluid tables and no tokens.
-    pub fn new(database_url: impl Into<String>) -> Self {
-        Self {
-            database_url: database_url.into(),
-            client_token: None,
-            worker_token: None,
-            body_limit: DEFAULT_BODY_LIMIT,
-            coordinator: CoordinatorSettings::default(),
-            reaper_interval: Duration::from_secs(1),
-            fluids: embedded_fluids(),
-            limits: limits::Limits::default(),
-            secure_cookies: false,
-            session_ttl: DEFAULT_SESSION_TTL,
-            lock_ttl: DEFAULT_LOCK_TTL,
-        }
-    }
-
-    /// Checks settings that depend on each other: the two tokens must differ (a worker token
-    /// that is also the client token would let every worker submit and cancel).
-    pub fn check(&self) -> Result<(), ServerError> {
-        if let (Some(c), Some(w)) = (&self.client_token, &self.worker_token)
-            && c.same_as(w)
-        {
-            return Err(ServerError::Config(
-                "CRYOFIT_CLIENT_TOKEN and CRYOFIT_WORKER_TOKEN are the same: give each role its own token \
-                 (openssl rand -hex 32)"
-                    .into(),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Layers the environment over [`Settings::new`]: `CRYOFIT_CLIENT_TOKEN`,
-    /// `CRYOFIT_WORKER_TOKEN`, `CRYOFIT_LEASE_S` (lease length, s), `CRYOFIT_MAX_ATTEMPTS`,
-    /// `CRYOFIT_BODY_LIMIT` (bytes). Errors name the variable.
-    pub fn from_env(database_url: impl Into<String>) -> Result<Self, ServerError> {
-        let mut s = Self::new(database_url);
-        let var = |name: &str| std::env::var(name).ok().filter(|v| !v.trim().is_empty());
-        s.client_token = var("CRYOFIT_CLIENT_TOKEN").map(Secret::new);
-        s.worker_token = var("CRYOFIT_WORKER_TOKEN").map(Secret::new);
-        if let Some(v) = var("CRYOFIT_LEASE_S") {
-            let secs: f64 = v
-                .parse()
-                .ok()
-                .filter(|x: &f64| x.is_finite() && *x > 0.0 && *x < 86_400.0)
-                .ok_or_else(|| ServerError::Config(format!("CRYOFIT_LEASE_S = {v}: give seconds in (0, 86400)")))?;
-            s.coordinator.lease = Duration::from_secs_f64(secs);
-            s.reaper_interval = Duration::from_secs_f64((secs / 4.0).clamp(0.05, 1.0));
-        }
-        if let Some(v) = var("CRYOFIT_MAX_ATTEMPTS") {
-            s.coordinator.max_attempts = v
-                .parse()
-                .ok()
-                .filter(|x| *x >= 1)
-                .ok_or_else(|| ServerError::Config(format!("CRYOFIT_MAX_ATTEMPTS = {v}: give an integer ≥ 1")))?;
-        }
-        if let Some(v) = var("CRYOFIT_BODY_LIMIT") {
-            s.body_limit = v
-                .parse()
-                .ok()
-                .filter(|x| *x >= 1024)
-                .ok_or_else(|| ServerError::Config(format!("CRYOFIT_BODY_LIMIT = {v}: give bytes ≥ 1024")))?;
-        }
-        s.check()?;
-        Ok(s)
-    }
-}
 
 /// Why the coordinator could not start or stopped.
 #[derive(Debug, thiserror::Error)]
@@ -221,6 +48,12 @@ pub enum ServerError {
     /// Serving failed.
     #[error("serving: {0}")]
     Io(#[from] std::io::Error),
+}
+
+impl From<config::ConfigError> for ServerError {
+    fn from(e: config::ConfigError) -> Self {
+        Self::Config(e.0)
+    }
 }
 
 /// Shared state of the routes.
@@ -476,16 +309,5 @@ mod tests {
             .expect_err("a read-only database is refused");
         assert!(e.to_string().contains("cannot be written"), "{e}");
         let _ = std::fs::remove_dir_all(dir);
-    }
-
-    #[test]
-    fn identical_client_and_worker_tokens_are_refused() {
-        let mut s = Settings::new("x.db");
-        s.client_token = Some(Secret::new("same"));
-        s.worker_token = Some(Secret::new("same"));
-        assert!(s.check().unwrap_err().to_string().contains("are the same"));
-        s.worker_token = Some(Secret::new("other"));
-        assert!(s.check().is_ok());
-        assert_eq!(format!("{:?}", s.client_token), "Some(Secret(***))");
     }
 }

@@ -5,7 +5,6 @@
 
 use std::fmt::Write as _;
 
-use axum::body::Body;
 use axum::extract::{FromRequest, FromRequestParts, MatchedPath, Request, State};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header, request::Parts};
 use axum::middleware::{self, Next};
@@ -15,7 +14,6 @@ use axum::{Json, Router};
 use cryofit_api as api;
 use serde::de::DeserializeOwned;
 use tower_http::set_header::SetResponseHeaderLayer;
-use tower_http::trace::TraceLayer;
 
 use crate::AppState;
 use crate::coordinator::{CoordError, NewCalibration, Report};
@@ -285,12 +283,7 @@ pub fn router(state: AppState) -> Router {
         .merge(crate::dashboard::router(state.clone()))
         .fallback(not_found)
         .method_not_allowed_fallback(method_not_allowed);
-    with_security_headers(app)
-        .layer(TraceLayer::new_for_http().make_span_with(|req: &Request<Body>| {
-            let route = req.extensions().get::<MatchedPath>().map_or("unmatched", |m| m.as_str());
-            tracing::info_span!("request", method = %req.method(), route = %route)
-        }))
-        .with_state(state)
+    with_security_headers(app).layer(crate::telemetry::http_trace()).with_state(state)
 }
 
 /// The Content-Security-Policy of every answer: the dashboard's own script and style sheet
