@@ -783,7 +783,7 @@ mod tests {
         for &e in experiments {
             rows.push(db::experiment(c.db.reader(), e).await.expect("experiment"));
         }
-        let p = crate::validate::calibration(&req, &rows, &crate::embedded_fluids(), &api::Limits::default())
+        let p = crate::validate::calibration(&req, &rows, &crate::fluids::embedded_fluids(), &api::Limits::default())
             .expect("valid");
         c.create(NewCalibration { request: req, pipeline: p.pipeline, fluid_hashes: p.fluid_hashes })
             .await
@@ -791,7 +791,7 @@ mod tests {
     }
 
     fn claim(max_jobs: u32) -> api::ClaimRequest {
-        let (_, hash) = crate::embedded_fluids()("nitrogen").expect("nitrogen");
+        let (_, hash) = crate::fluids::embedded_fluids()("nitrogen").expect("nitrogen");
         api::ClaimRequest {
             worker: "w".into(),
             slots: 1,

@@ -26,7 +26,7 @@ use cryofit_solver::case::Case;
 use cryofit_solver::cryo::CorrelationSet;
 use cryofit_solver::params::{self, ParameterSet};
 
-use crate::FluidLoader;
+use crate::fluids::FluidLoader;
 
 /// What a calibration's figures are made from.
 #[derive(Debug, Clone)]
@@ -645,7 +645,7 @@ mod tests {
     fn dashboard_runs_end_at_the_data_and_reports_run_the_whole_case() {
         let d = data();
         let ctx = Context::new(&d);
-        let fluids = crate::embedded_fluids();
+        let fluids = crate::fluids::embedded_fluids();
         let dashboard = ctx.experiments(&fluids, true).expect("experiments");
         assert_eq!(dashboard[0].model.stop_s(), 8.0, "the data end at 8 s");
         let report = ctx.experiments(&fluids, false).expect("experiments");

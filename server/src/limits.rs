@@ -14,7 +14,7 @@ use cryofit_solver::driver::PROBE_QUANTITIES;
 
 pub use cryofit_api::Limits;
 
-use crate::validate::Invalid;
+use crate::invalid::Invalid;
 
 /// Values one whole-line profile records per cell: six cell quantities and two junction
 /// velocities (one junction more than cells, counted with the cells).

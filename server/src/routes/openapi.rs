@@ -1,28 +1,13 @@
-//! The OpenAPI 3.1 document, generated from the route annotations and the `api` types.
+//! The OpenAPI 3.1 document: the routes' `#[utoipa::path]` annotations, collected as the routes
+//! are declared ([`super::api_routes`]), in a frame of the `api` types, the bearer scheme and this
+//! coordinator's limits.
 
 use cryofit_api as api;
 use utoipa::OpenApi;
 
-use crate::routes;
-
 #[derive(OpenApi)]
 #[openapi(
     info(title = "cryofit coordinator", description = "Experiments, calibrations, history and worker jobs."),
-    paths(
-        routes::create_experiment,
-        routes::list_experiments,
-        routes::get_experiment,
-        routes::create_calibration,
-        routes::list_calibrations,
-        routes::get_calibration,
-        routes::cancel_calibration,
-        routes::parameter_sets,
-        routes::results,
-        routes::claim,
-        routes::heartbeat,
-        routes::result,
-        routes::results_batch,
-    ),
     components(schemas(
         api::ErrorBody,
         api::ErrorDetail,
@@ -54,7 +39,7 @@ use crate::routes;
     )),
     modifiers(&Security)
 )]
-struct Doc;
+struct Frame;
 
 struct Security;
 
@@ -71,10 +56,14 @@ impl utoipa::Modify for Security {
     }
 }
 
-/// The document, with this coordinator's [`api::Limits`]: in the description, and as the
+/// The document without paths: info, the `api` schemas, the bearer scheme.
+pub(super) fn frame() -> utoipa::openapi::OpenApi {
+    Frame::openapi()
+}
+
+/// Adds this coordinator's [`api::Limits`] to the document: in the description, and as the
 /// extension `x-cryofit-limits` of `info` (the same object as the `Limits` schema).
-pub fn document(limits: &api::Limits) -> utoipa::openapi::OpenApi {
-    let mut doc = Doc::openapi();
+pub(super) fn with_limits(mut doc: utoipa::openapi::OpenApi, limits: &api::Limits) -> utoipa::openapi::OpenApi {
     let text = format!(
         "Experiments, calibrations, history and worker jobs.\n\nLimits of this coordinator (a request over one \
          is refused with 422 naming the field): at most {} evaluations per calibration (--max-budget); stage \
