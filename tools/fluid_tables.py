@@ -93,26 +93,33 @@ def axis_nodes(segs):
     return np.array(nodes)
 
 
-# Tables whose interpolants the solver's loader cannot keep thermodynamically stable at the
-# base spacing near the critical point (solver/tests/fluid_stability.rs finds them): there the
-# temperature spacing from 0.97 Tc to 1.06 Tc is divided by this factor. The base grid's nodes
-# stay where they were, so states away from the critical point interpolate exactly as before.
-NEAR_CRITICAL_REFINE = {"oxygen": 4, "methane": 4}
+# Finer nodes near the critical point, as (temperature factor, pressure factor): the temperature
+# spacing from 0.97 Tc to 1.06 Tc and the pressure spacing from 0.8 pc to 1.1 pc are divided by
+# them. The base grid's nodes stay where they were, so states away from the critical point
+# interpolate exactly as before. Oxygen and methane: at the base spacing the solver's loader
+# cannot keep their interpolants thermodynamically stable along the pseudo-critical line
+# (solver/tests/fluid_stability.rs finds them). The hydrogens: with the base 20 kPa (1.5 % of
+# their critical pressure) and 0.15 K, the liquid rows near the critical point end at the
+# spinodal before the cells between two rows reach the saturation temperature of the upper row,
+# so that saturated liquid at 93 % of the critical pressure (the NBS 11 atm condition) lay
+# outside the liquid table.
+NEAR_CRITICAL_REFINE = {"oxygen": (4, 1), "methane": (4, 1), "hydrogen": (4, 4), "parahydrogen": (4, 4)}
 
 
-def fluid_axes(cp_name, refine=1):
+def fluid_axes(cp_name, refine=(1, 1)):
     """Grids per fluid: fine temperature spacing up to 1.3 Tc, coarser above."""
     a = CP.AbstractState("HEOS", cp_name)
     ttr, tc, pc = a.Ttriple(), a.T_critical(), a.p_critical()
     t_fine_end = 1.3 * tc
     # roughly 200 fine intervals below 1.3 Tc, then ~4 % of Tc up to 2.2 Tc, then ~8 K
     fine = (t_fine_end - ttr) / 200.0
-    if refine > 1:
+    t_refine, p_refine = refine
+    if t_refine > 1:
         # break points on nodes of the base grid, so that no base node moves
         k_lo = math.floor((0.97 * tc - ttr) / fine)
         k_hi = math.ceil((1.06 * tc - ttr) / fine)
         t_breaks = [ttr, ttr + k_lo * fine, ttr + k_hi * fine, t_fine_end]
-        t_steps = [fine, fine / refine, fine]
+        t_steps = [fine, fine / t_refine, fine]
     else:
         t_breaks = [ttr, t_fine_end]
         t_steps = [fine]
@@ -122,7 +129,7 @@ def fluid_axes(cp_name, refine=1):
     else:
         t_breaks += [T_MAX]
         t_steps += [0.04 * tc]
-    return pressure_segments(pc), axis_segments(t_breaks, t_steps)
+    return pressure_segments(pc, p_refine), axis_segments(t_breaks, t_steps)
 
 
 # Supercritical pressure segments above 1.1 pc: (upper end / pc, spacing / pc). The spacing grows
@@ -130,7 +137,7 @@ def fluid_axes(cp_name, refine=1):
 SUPERCRITICAL_STEPS = ((1.6, 0.025), (2.5, 0.05), (4.0, 0.1), (math.inf, 0.2))
 
 
-def pressure_segments(pc):
+def pressure_segments(pc, refine=1):
     """Pressure grid: log-like segments at low pressure, finest around the critical pressure.
 
     1-5 kPa every 0.5 kPa, 5-100 kPa every 5 kPa, 0.1-1 MPa every 25 kPa, then every 50 kPa up to
@@ -143,7 +150,7 @@ def pressure_segments(pc):
         p_breaks.append(0.8 * pc)
         p_steps.append(5.0e4)
     p_breaks.append(1.1 * pc)
-    p_steps.append(2.0e4)
+    p_steps.append(2.0e4 / refine)
     for hi, step in SUPERCRITICAL_STEPS:
         p_breaks.append(min(hi * pc, P_MAX))
         p_steps.append(step * pc)
@@ -508,7 +515,7 @@ def melting_nodes(cp_name, p_nodes, ttr):
 
 def write_table(name, cp_name, human, out_dir):
     sat = Saturation(cp_name)
-    p_segs, t_segs = fluid_axes(cp_name, NEAR_CRITICAL_REFINE.get(name, 1))
+    p_segs, t_segs = fluid_axes(cp_name, NEAR_CRITICAL_REFINE.get(name, (1, 1)))
     p_nodes, t_nodes = axis_nodes(p_segs), axis_nodes(t_segs)
 
     def t_step_at(t):
