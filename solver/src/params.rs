@@ -598,12 +598,25 @@ impl ParameterSet {
         }
     }
 
-    /// The value of `name`: set, or the registry default. Panics on a name not in the
-    /// registry (a programming error: closures only ask for registered names).
-    pub fn get(&self, name: &str) -> f64 {
+    /// The value of `name`: set, or the registry default; a name not in the registry is an
+    /// error that suggests the closest name.
+    pub fn try_get(&self, name: &str) -> Result<f64, ParamError> {
         match self.values.get(name) {
-            Some(v) => *v,
-            None => spec(name).unwrap_or_else(|| panic!("parameter '{name}' is not in the registry")).default,
+            Some(v) => Ok(*v),
+            None => spec(name)
+                .map(|p| p.default)
+                .ok_or_else(|| ParamError::Unknown { name: name.to_string(), suggestion: closest(name) }),
+        }
+    }
+
+    /// The value of a registered `name`, for this crate's closures, which read the registry by
+    /// literal names (`cryo::CryoParams::from_set`, `driver::physics_of`); a test reads every one
+    /// of them. Panics on a name not in the registry: outside this crate, use
+    /// [`ParameterSet::try_get`].
+    pub(crate) fn get(&self, name: &str) -> f64 {
+        match self.try_get(name) {
+            Ok(v) => v,
+            Err(e) => panic!("{e}"),
         }
     }
 
@@ -733,5 +746,20 @@ mod tests {
         let e = s.set("vm_coeff", 50.0).unwrap_err().to_string();
         assert!(e.contains("outside its bounds"), "{e}");
         assert!(s.set("vm_coeff", f64::NAN).is_err());
+    }
+
+    #[test]
+    fn try_get_reads_set_values_and_defaults_and_refuses_unknown_names() {
+        let mut s = ParameterSet::new();
+        assert_eq!(s.try_get("vm_coeff"), Ok(0.5));
+        s.set("vm_coeff", 1.0).unwrap();
+        assert_eq!(s.try_get("vm_coeff"), Ok(1.0));
+        assert_eq!(
+            s.try_get("vm_coef"),
+            Err(ParamError::Unknown { name: "vm_coef".into(), suggestion: Some("vm_coeff") })
+        );
+        // every name the crate's closures read with `get` is registered (these would panic)
+        let _ = crate::cryo::CryoParams::from_set(&s);
+        assert_eq!(s.get("hi_vol"), 1.0e5);
     }
 }
