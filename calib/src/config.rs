@@ -235,21 +235,20 @@ impl StageSpec {
     }
 
     /// Checks option applicability and ranges; `at` is the field path for errors (`stages[2]`).
-    pub fn validate(&self, at: &str) -> Result<(), String> {
+    pub fn validate(&self, at: &str) -> Result<(), SpecError> {
+        let field = |name: &str| format!("{at}.{name}");
         if self.budget == 0 {
-            return Err(format!("{at}.budget: must be at least 1"));
+            return Err(SpecError::Invalid { field: field("budget"), need: "must be at least 1" });
         }
         for name in self.set_options() {
             if !self.algorithm.options().contains(&name) {
-                return Err(format!(
-                    "{at}.{name}: does not apply to algorithm \"{}\" (its options: {})",
-                    self.algorithm,
-                    self.algorithm.options().join(", ")
-                ));
+                return Err(SpecError::NotAnOption { field: field(name), algorithm: self.algorithm });
             }
         }
         let positive = |name: &str, v: Option<f64>| match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{at}.{name} = {x}: must be a finite number > 0")),
+            Some(value) if !(value.is_finite() && value > 0.0) => {
+                Err(SpecError::OutOfRange { field: field(name), value, need: "must be a finite number > 0" })
+            }
             _ => Ok(()),
         };
         positive("tolerance", self.tolerance)?;
@@ -258,24 +257,21 @@ impl StageSpec {
         positive("span", self.span)?;
         positive("spread", self.spread)?;
         for (name, v) in [("threshold", self.threshold), ("mutation", self.mutation), ("burn_in", self.burn_in)] {
-            if let Some(x) = v
-                && !(x.is_finite() && (0.0..1.0).contains(&x))
+            if let Some(value) = v
+                && !(value.is_finite() && (0.0..1.0).contains(&value))
             {
-                return Err(format!("{at}.{name} = {x}: must be in [0, 1)"));
+                return Err(SpecError::OutOfRange { field: field(name), value, need: "must be in [0, 1)" });
             }
         }
         if self.keep == Some(0) {
-            return Err(format!("{at}.keep: must be at least 1"));
+            return Err(SpecError::Invalid { field: field("keep"), need: "must be at least 1" });
         }
-        if let Some(g) = self.stall_generations {
-            if g == 0 {
-                return Err(format!("{at}.stall_generations: must be at least 1"));
+        if let Some(generations) = self.stall_generations {
+            if generations == 0 {
+                return Err(SpecError::Invalid { field: field("stall_generations"), need: "must be at least 1" });
             }
             if self.tolerance.is_none() {
-                return Err(format!(
-                    "{at}.stall_generations = {g}: needs a `tolerance` (the least improvement of the best cost over \
-                     that many generations)"
-                ));
+                return Err(SpecError::StallWithoutTolerance { field: field("stall_generations"), generations });
             }
         }
         Ok(())
@@ -336,79 +332,82 @@ impl CalibrationSpec {
     pub fn from_toml(text: &str, file: &str) -> Result<Self, ConfigError> {
         let spec: Self = toml::from_str(text)
             .map_err(|e| ConfigError { file: file.to_string(), message: e.to_string().trim().replace('\n', " ") })?;
-        spec.validate().map_err(|message| ConfigError { file: file.to_string(), message })?;
+        spec.validate().map_err(|e| ConfigError { file: file.to_string(), message: e.to_string() })?;
         Ok(spec)
     }
 
     /// Checks names, bounds, weights and stages. Errors name the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SpecError> {
+        let invalid = |field: &str, need: &'static str| Err(SpecError::Invalid { field: field.to_string(), need });
         if self.name.trim().is_empty() {
-            return Err("name: must not be empty".into());
+            return invalid("name", "must not be empty");
         }
         if self.experiments.is_empty() {
-            return Err("experiments: at least one [[experiments]] entry is needed".into());
+            return invalid("experiments", "at least one [[experiments]] entry is needed");
         }
         for (k, e) in self.experiments.iter().enumerate() {
             if e.case.trim().is_empty() || e.data.trim().is_empty() {
-                return Err(format!("experiments[{k}]: case and data must name files"));
+                return invalid(&format!("experiments[{k}]"), "case and data must name files");
             }
         }
         if self.parameters.is_empty() {
-            return Err("parameters: at least one free parameter ([[parameters]]) is needed".into());
+            return invalid("parameters", "at least one free parameter ([[parameters]]) is needed");
         }
         self.space()?;
-        for (name, &v) in &self.fixed {
-            let spec = registry_spec(name).map_err(|m| format!("fixed.{name}: {m}"))?;
-            if !(v.is_finite() && v >= spec.lower && v <= spec.upper) {
-                return Err(format!(
-                    "fixed.{name} = {v}: outside the registry bounds [{}, {}]",
-                    spec.lower, spec.upper
-                ));
+        for (name, &value) in &self.fixed {
+            let field = format!("fixed.{name}");
+            let spec = registry_spec(&field, name)?;
+            if !(value.is_finite() && value >= spec.lower && value <= spec.upper) {
+                return Err(SpecError::OutsideRegistry { field, value, lower: spec.lower, upper: spec.upper });
             }
             if self.parameters.iter().any(|p| &p.name == name) {
-                return Err(format!("fixed.{name}: is also a free parameter; list it in one place"));
+                return invalid(&field, "is also a free parameter; list it in one place");
             }
         }
-        for (q, w) in &self.weights {
+        for q in self.weights.keys() {
             if !crate::data::QUANTITIES.contains(&q.as_str()) {
-                return Err(format!("weights.{q}: unknown quantity (known: {})", crate::data::QUANTITIES.join(", ")));
+                return Err(SpecError::UnknownQuantity { field: format!("weights.{q}") });
             }
-            self.weights().validate()?;
-            let _ = w;
         }
+        self.weights().validate()?;
         if self.stages.is_empty() {
-            return Err("stages: at least one [[stages]] entry is needed".into());
+            return invalid("stages", "at least one [[stages]] entry is needed");
         }
         for (k, s) in self.stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
         }
         if self.stages.iter().try_fold(0usize, |t, s| t.checked_add(s.budget)).is_none() {
-            return Err(format!("stages: the budgets add up to more than {} evaluations; lower them", usize::MAX));
+            return Err(SpecError::BudgetOverflow);
         }
         if !(self.max_evaluation_s.is_finite() && self.max_evaluation_s > 0.0) {
-            return Err(format!("max_evaluation_s = {}: must be a finite number > 0", self.max_evaluation_s));
+            return Err(SpecError::OutOfRange {
+                field: "max_evaluation_s".into(),
+                value: self.max_evaluation_s,
+                need: "must be a finite number > 0",
+            });
         }
         Ok(())
     }
 
     /// The free-parameter space: bounds default to the registry's and must lie within them.
-    pub fn space(&self) -> Result<Space, String> {
+    pub fn space(&self) -> Result<Space, SpecError> {
         let mut free = Vec::new();
         for (k, p) in self.parameters.iter().enumerate() {
-            let spec = registry_spec(&p.name).map_err(|m| format!("parameters[{k}].name: {m}"))?;
+            let spec = registry_spec(&format!("parameters[{k}].name"), &p.name)?;
             let lower = p.lower.unwrap_or(spec.lower);
             let upper = p.upper.unwrap_or(spec.upper);
+            let bounds = |registry: Option<(f64, f64)>| SpecError::Bounds {
+                field: format!("parameters[{k}]"),
+                name: p.name.clone(),
+                lower,
+                upper,
+                registry,
+            };
             if !(lower.is_finite() && upper.is_finite() && lower < upper) {
-                return Err(format!(
-                    "parameters[{k}] ({}): bounds must be finite with lower < upper (got lower = {lower}, upper = {upper})",
-                    p.name
-                ));
+                return Err(bounds(None));
             }
             if lower < spec.lower || upper > spec.upper {
-                return Err(format!(
-                    "parameters[{k}] ({}): bounds [{lower}, {upper}] leave the registry's [{}, {}]",
-                    p.name, spec.lower, spec.upper
-                ));
+                return Err(bounds(Some((spec.lower, spec.upper))));
             }
             let scale = match p.scale.unwrap_or(ScaleName::Linear) {
                 ScaleName::Linear => Scale::Linear,
@@ -416,7 +415,7 @@ impl CalibrationSpec {
             };
             free.push(FreeParameter { name: p.name.clone(), lower, upper, scale });
         }
-        Space::new(free).map_err(|e| format!("parameters: {e}"))
+        Ok(Space::new(free)?)
     }
 
     /// The weights as the cost uses them.
@@ -433,11 +432,134 @@ impl CalibrationSpec {
     }
 }
 
-fn registry_spec(name: &str) -> Result<&'static params::ParamSpec, String> {
-    params::spec(name).ok_or_else(|| {
-        let hint = params::closest(name).map(|s| format!("; did you mean `{s}`?")).unwrap_or_default();
-        format!("unknown parameter `{name}`{hint} (`cryofit params` lists them)")
+/// The registry entry of parameter `name`, given at `field`.
+fn registry_spec(field: &str, name: &str) -> Result<&'static params::ParamSpec, SpecError> {
+    params::spec(name).ok_or_else(|| SpecError::UnknownParameter {
+        field: field.to_string(),
+        name: name.to_string(),
+        suggestion: params::closest(name),
     })
+}
+
+/// What is wrong with a calibration, at which field. The message names the field first
+/// (`stages[0].budget: must be at least 1`) and says what to change.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpecError {
+    /// A field that is empty, zero or in conflict with another.
+    #[error("{field}: {need}")]
+    Invalid {
+        /// The field path.
+        field: String,
+        /// What it needs.
+        need: &'static str,
+    },
+    /// A number outside its range.
+    #[error("{field} = {value}: {need}")]
+    OutOfRange {
+        /// The field path.
+        field: String,
+        /// The value given.
+        value: f64,
+        /// The range, in words.
+        need: &'static str,
+    },
+    /// A stage option that the stage's algorithm does not have.
+    #[error("{field}: does not apply to algorithm \"{algorithm}\" (its options: {})", algorithm.options().join(", "))]
+    NotAnOption {
+        /// The field path (`stages[k].<option>`).
+        field: String,
+        /// The stage's algorithm.
+        algorithm: AlgorithmName,
+    },
+    /// A stall criterion without the tolerance it compares with.
+    #[error(
+        "{field} = {generations}: needs a `tolerance` (the least improvement of the best cost over that many \
+         generations)"
+    )]
+    StallWithoutTolerance {
+        /// The field path (`stages[k].stall_generations`).
+        field: String,
+        /// The generations given.
+        generations: usize,
+    },
+    /// A name that is not in the parameter registry.
+    #[error(
+        "{field}: unknown parameter `{name}`{} (`cryofit params` lists them)",
+        suggestion.map(|s| format!("; did you mean `{s}`?")).unwrap_or_default()
+    )]
+    UnknownParameter {
+        /// The field path.
+        field: String,
+        /// The name given.
+        name: String,
+        /// The closest registry name, if one is close.
+        suggestion: Option<&'static str>,
+    },
+    /// A fixed value outside the registry's bounds.
+    #[error("{field} = {value}: outside the registry bounds [{lower}, {upper}]")]
+    OutsideRegistry {
+        /// The field path (`fixed.<name>`).
+        field: String,
+        /// The value given.
+        value: f64,
+        /// The registry's lower bound.
+        lower: f64,
+        /// The registry's upper bound.
+        upper: f64,
+    },
+    /// Bounds of a free parameter that are not finite and increasing (`registry: None`), or that
+    /// leave the registry's bounds.
+    #[error("{field} ({name}): {}", match registry {
+        None => format!("bounds must be finite with lower < upper (got lower = {lower}, upper = {upper})"),
+        Some((lo, hi)) => format!("bounds [{lower}, {upper}] leave the registry's [{lo}, {hi}]"),
+    })]
+    Bounds {
+        /// The field path (`parameters[k]`).
+        field: String,
+        /// The parameter.
+        name: String,
+        /// Lower bound given (or the registry's).
+        lower: f64,
+        /// Upper bound given (or the registry's).
+        upper: f64,
+        /// The registry's bounds, when the given ones leave them.
+        registry: Option<(f64, f64)>,
+    },
+    /// A weight for a quantity that no time series holds.
+    #[error("{field}: unknown quantity (known: {})", crate::data::QUANTITIES.join(", "))]
+    UnknownQuantity {
+        /// The field path (`weights.<quantity>`).
+        field: String,
+    },
+    /// A weight that cannot be used.
+    #[error(transparent)]
+    Weight(#[from] crate::cost::WeightError),
+    /// The free parameters do not make a space.
+    #[error("parameters: {0}")]
+    Space(#[from] crate::space::SpaceError),
+    /// The stages' budgets add up past the integer range.
+    #[error("stages: the budgets add up to more than {} evaluations; lower them", usize::MAX)]
+    BudgetOverflow,
+}
+
+impl SpecError {
+    /// The path of the field at fault (`stages[0].budget`, `weights.pressure_pa.sigma`, …).
+    pub fn field(&self) -> String {
+        match self {
+            Self::Invalid { field, .. }
+            | Self::OutOfRange { field, .. }
+            | Self::NotAnOption { field, .. }
+            | Self::StallWithoutTolerance { field, .. }
+            | Self::UnknownParameter { field, .. }
+            | Self::OutsideRegistry { field, .. }
+            | Self::Bounds { field, .. }
+            | Self::UnknownQuantity { field } => field.clone(),
+            Self::Weight(e) => e.field(),
+            Self::Space(_) => "parameters".into(),
+            Self::BudgetOverflow => "stages".into(),
+        }
+    }
 }
 
 #[cfg(test)]

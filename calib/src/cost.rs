@@ -56,17 +56,87 @@ impl Weights {
     }
 
     /// Checks every weight: η finite and ≥ 0, σ finite and > 0.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), WeightError> {
         for (q, w) in &self.0 {
             if !(w.weight.is_finite() && w.weight >= 0.0) {
-                return Err(format!("weights.{q}.weight = {}: must be a finite number ≥ 0", w.weight));
+                return Err(WeightError::Weight { quantity: q.clone(), value: w.weight });
             }
             if !(w.sigma.is_finite() && w.sigma > 0.0) {
-                return Err(format!("weights.{q}.sigma = {}: must be a finite number > 0", w.sigma));
+                return Err(WeightError::Sigma { quantity: q.clone(), value: w.sigma });
             }
         }
         Ok(())
     }
+}
+
+/// A weight that cannot be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum WeightError {
+    /// η is negative or not a number.
+    #[error("weights.{quantity}.weight = {value}: must be a finite number ≥ 0")]
+    Weight {
+        /// The weighted quantity.
+        quantity: String,
+        /// The η given.
+        value: f64,
+    },
+    /// σ is not positive or not a number.
+    #[error("weights.{quantity}.sigma = {value}: must be a finite number > 0")]
+    Sigma {
+        /// The weighted quantity.
+        quantity: String,
+        /// The σ given.
+        value: f64,
+    },
+}
+
+impl WeightError {
+    /// The field at fault (`weights.<quantity>.weight` or `.sigma`).
+    pub fn field(&self) -> String {
+        match self {
+            Self::Weight { quantity, .. } => format!("weights.{quantity}.weight"),
+            Self::Sigma { quantity, .. } => format!("weights.{quantity}.sigma"),
+        }
+    }
+}
+
+/// Why a model output cannot be compared with the data.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitError {
+    /// The data have a series (station, quantity) that the model output lacks.
+    #[error("the model output has no {quantity} at station `{station}`")]
+    MissingSeries {
+        /// Station name.
+        station: String,
+        /// Quantity.
+        quantity: String,
+    },
+    /// A data time lies outside the model output's time range.
+    #[error("station `{station}`, {quantity}: the model output covers {from_s}–{to_s} s, not the data time {time_s} s")]
+    NotCovered {
+        /// Station name.
+        station: String,
+        /// Quantity.
+        quantity: String,
+        /// First time of the model series, s.
+        from_s: f64,
+        /// Last time of the model series, s.
+        to_s: f64,
+        /// The data time, s.
+        time_s: f64,
+    },
+    /// The model value (or its difference from the data) at a data time is not a finite number.
+    #[error("station `{station}`, {quantity}: the model value at {time_s} s is not finite")]
+    NotFinite {
+        /// Station name.
+        station: String,
+        /// Quantity.
+        quantity: String,
+        /// The data time, s.
+        time_s: f64,
+    },
 }
 
 /// Per-series contribution to the cost.
@@ -89,28 +159,29 @@ pub struct Fit {
 
 /// Cost of `model` output against `data`. Errors name the station/quantity the model lacks or
 /// the data time it does not cover.
-pub fn fit(model: &Dataset, data: &Dataset, weights: &Weights) -> Result<Fit, String> {
+pub fn fit(model: &Dataset, data: &Dataset, weights: &Weights) -> Result<Fit, FitError> {
     let mut total = 0.0;
     let mut series = BTreeMap::new();
     for (key, d) in &data.series {
         let Some(w) = weights.get(&key.1) else { continue };
-        let m =
-            model.series.get(key).ok_or_else(|| format!("the model output has no {} at station `{}`", key.1, key.0))?;
+        let (station, quantity) = (&key.0, &key.1);
+        let m = model
+            .series
+            .get(key)
+            .ok_or_else(|| FitError::MissingSeries { station: station.clone(), quantity: quantity.clone() })?;
         let mut sum = 0.0;
         let mut sq = 0.0;
         for (&t, &y) in d.times.iter().zip(&d.values) {
-            let ym = m.at(t).ok_or_else(|| {
-                format!(
-                    "station `{}`, {}: the model output covers {}–{} s, not the data time {t} s",
-                    key.0,
-                    key.1,
-                    m.times.first().copied().unwrap_or(0.0),
-                    m.times.last().copied().unwrap_or(0.0)
-                )
+            let ym = m.at(t).ok_or_else(|| FitError::NotCovered {
+                station: station.clone(),
+                quantity: quantity.clone(),
+                from_s: m.times.first().copied().unwrap_or(0.0),
+                to_s: m.times.last().copied().unwrap_or(0.0),
+                time_s: t,
             })?;
             let r = ym - y;
             if !r.is_finite() {
-                return Err(format!("station `{}`, {}: the model value at {t} s is not finite", key.0, key.1));
+                return Err(FitError::NotFinite { station: station.clone(), quantity: quantity.clone(), time_s: t });
             }
             sq += r * r;
             sum += w.weight * (r / w.sigma) * (r / w.sigma);
@@ -166,9 +237,13 @@ mod tests {
     fn missing_station_or_time_is_an_error() {
         let model = ds(&[(0.0, 300.0), (4.0, 200.0)]);
         let data = ds(&[(5.0, 248.0)]);
-        assert!(fit(&model, &data, &Weights::default()).unwrap_err().contains("not the data time 5"));
+        let e = fit(&model, &data, &Weights::default()).unwrap_err();
+        assert!(matches!(e, FitError::NotCovered { time_s: 5.0, to_s: 4.0, .. }), "{e:?}");
+        assert!(e.to_string().contains("not the data time 5"), "{e}");
         let mut other = Dataset::default();
         other.series.insert(("TS9".into(), "wall_temperature_k".into()), data.series.values().next().unwrap().clone());
-        assert!(fit(&model, &other, &Weights::default()).unwrap_err().contains("station `TS9`"));
+        let e = fit(&model, &other, &Weights::default()).unwrap_err();
+        assert!(matches!(&e, FitError::MissingSeries { station, .. } if station == "TS9"), "{e:?}");
+        assert!(e.to_string().contains("station `TS9`"), "{e}");
     }
 }

@@ -6,6 +6,24 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+/// Why no draws can be made.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DrawsError {
+    /// The covariance or the bounds do not match the mean's dimension.
+    #[error("covariance must be {dim} × {dim} and there must be {dim} bounds")]
+    Shape {
+        /// The mean's dimension.
+        dim: usize,
+    },
+    /// A mean or covariance entry is not a finite number.
+    #[error("the mean and covariance must be finite")]
+    NotFinite,
+    /// Not even the covariance with floored eigenvalues has a Cholesky factor.
+    #[error("the covariance cannot be factorised")]
+    NotFactorisable,
+}
+
 /// `n` draws of N(mean, cov), each clamped into `[lower_i, upper_i]`. The covariance is
 /// factorised by Cholesky; a covariance that is not positive definite gets its eigenvalues
 /// floored at 1e-12 of the largest first.
@@ -15,13 +33,13 @@ pub fn gaussian_draws(
     bounds: &[(f64, f64)],
     n: usize,
     seed: u64,
-) -> Result<Vec<Vec<f64>>, String> {
+) -> Result<Vec<Vec<f64>>, DrawsError> {
     let d = mean.len();
     if cov.len() != d || cov.iter().any(|r| r.len() != d) || bounds.len() != d {
-        return Err(format!("covariance must be {d} × {d} and there must be {d} bounds"));
+        return Err(DrawsError::Shape { dim: d });
     }
     if mean.iter().chain(cov.iter().flatten()).any(|v| !v.is_finite()) {
-        return Err("the mean and covariance must be finite".into());
+        return Err(DrawsError::NotFinite);
     }
     let c = DMatrix::from_fn(d, d, |i, j| 0.5 * (cov[i][j] + cov[j][i]));
     let l = match c.clone().cholesky() {
@@ -31,7 +49,7 @@ pub fn gaussian_draws(
             let top = eig.eigenvalues.iter().fold(0.0f64, |m, &v| m.max(v.abs())).max(1e-300);
             let vals = eig.eigenvalues.map(|v| v.max(1e-12 * top));
             let fixed = &eig.eigenvectors * DMatrix::from_diagonal(&vals) * eig.eigenvectors.transpose();
-            fixed.cholesky().ok_or("the covariance cannot be factorised")?.l()
+            fixed.cholesky().ok_or(DrawsError::NotFactorisable)?.l()
         }
     };
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -64,6 +82,7 @@ mod tests {
         // clamped into the bounds
         let y = gaussian_draws(&[0.0], &[vec![1.0]], &[(-0.5, 0.5)], 100, 1).unwrap();
         assert!(y.iter().all(|v| v[0].abs() <= 0.5));
-        assert!(gaussian_draws(&[0.0], &[vec![f64::NAN]], &[(0.0, 1.0)], 1, 1).is_err());
+        assert_eq!(gaussian_draws(&[0.0], &[vec![f64::NAN]], &[(0.0, 1.0)], 1, 1), Err(DrawsError::NotFinite));
+        assert_eq!(gaussian_draws(&[0.0], &[vec![1.0]], &[], 1, 1), Err(DrawsError::Shape { dim: 1 }));
     }
 }

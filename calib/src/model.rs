@@ -7,14 +7,29 @@ use std::sync::Arc;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver;
 use cryofit_solver::fluids::FluidTable;
-use cryofit_solver::params::ParameterSet;
+use cryofit_solver::params::{ParamError, ParameterSet};
 
 use crate::data::{Dataset, Series};
+
+/// Why a model gave no time series.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// A parameter name or value is not acceptable.
+    #[error(transparent)]
+    Parameter(#[from] ParamError),
+    /// The solver stopped before the end of the run (its error carries the numbers).
+    #[error(transparent)]
+    Simulation(#[from] driver::SimError),
+    /// A model other than the solver failed, for the reason given.
+    #[error("{0}")]
+    Failed(String),
+}
 
 /// A model evaluated at named parameter values (registry names, physical units).
 pub trait Model: Send + Sync + 'static {
     /// The model's time series, or why the run failed (for example where the solver diverged).
-    fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, String>;
+    fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, ModelError>;
 
     /// The model as `Any`, so that callers can reach a concrete model's own methods (for
     /// example the solver's full output for reports).
@@ -34,8 +49,8 @@ pub struct SolverModel {
 impl SolverModel {
     /// `base` holds the values of parameters that are not free (the case's own `[parameters]`
     /// are applied first, `base` over them, the free values over both).
-    pub fn new(case: Case, fluid: Arc<FluidTable>, base: &ParameterSet) -> Result<Self, String> {
-        let mut set = driver::case_parameters(&case).map_err(|e| e.to_string())?;
+    pub fn new(case: Case, fluid: Arc<FluidTable>, base: &ParameterSet) -> Result<Self, ModelError> {
+        let mut set = driver::case_parameters(&case)?;
         set.overlay(base);
         let stop_s = case.time.end_s;
         Ok(Self { case, fluid, base: set, stop_s })
@@ -79,16 +94,16 @@ impl SolverModel {
     }
 
     /// The full parameter set of a run at `parameters`.
-    pub fn parameter_set(&self, parameters: &BTreeMap<String, f64>) -> Result<ParameterSet, String> {
+    pub fn parameter_set(&self, parameters: &BTreeMap<String, f64>) -> Result<ParameterSet, ModelError> {
         let mut set = self.base.clone();
         for (name, &value) in parameters {
-            set.set(name, value).map_err(|e| e.to_string())?;
+            set.set(name, value)?;
         }
         Ok(set)
     }
 
     /// Runs the solver to [`SolverModel::stop_s`] and returns its whole output.
-    pub fn run(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, String> {
+    pub fn run(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
         if self.stop_s < self.case.time.end_s {
             let mut case = self.case.clone();
             case.time.end_s = self.stop_s;
@@ -98,13 +113,13 @@ impl SolverModel {
     }
 
     /// Runs the solver to the case's own `time.end_s`.
-    pub fn run_full(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, String> {
+    pub fn run_full(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
         self.run_case(&self.case, parameters)
     }
 
-    fn run_case(&self, case: &Case, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, String> {
+    fn run_case(&self, case: &Case, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
         let set = self.parameter_set(parameters)?;
-        driver::run(case, &self.fluid, &set, &mut |_| {}).map_err(|e| e.to_string())
+        Ok(driver::run(case, &self.fluid, &set, &mut |_| {})?)
     }
 }
 
@@ -131,7 +146,7 @@ pub fn probes_dataset(probes: &[driver::Observation]) -> Dataset {
 }
 
 impl Model for SolverModel {
-    fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, String> {
+    fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, ModelError> {
         self.run(parameters).map(|out| probes_dataset(&out.probes))
     }
 

@@ -14,16 +14,65 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{Best, Evaluation, Optimizer, Outcome, StopReason, TellError};
-use crate::config::{AlgorithmName, StageSpec};
+use crate::config::{AlgorithmName, SpecError, StageSpec};
 use crate::inference::{
     self, EnsembleSampler, InferenceAlgorithm, InferenceSummary, McmcOptions, Morris, MorrisOptions, NelderMead,
     NelderMeadOptions, Sensitivity, SensitivityOptions, Variance, VarianceOptions,
 };
 use crate::optim::{
-    AnnealingOptions, CmaesOptions, DirectSearchOptions, GeneticOptions, GlobalAlgorithm, GlobalOptions,
+    AnnealingOptions, CmaesOptions, DirectSearchOptions, GeneticOptions, GlobalAlgorithm, GlobalOptions, OptimError,
     PatternOptions, SwarmOptions,
 };
-use crate::space::Space;
+use crate::space::{Space, SpaceError};
+
+/// Why a stage's algorithm cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum StageError {
+    /// A global optimiser refused its options, budget or start point.
+    #[error("{algorithm}: {error}")]
+    Global {
+        /// The stage's algorithm.
+        algorithm: AlgorithmName,
+        /// Why (its message is part of this error's).
+        error: OptimError,
+    },
+    /// An inference algorithm refused its options, budget or start point.
+    #[error(transparent)]
+    Inference(#[from] inference::InferenceError),
+    /// The stage's free parameters do not make a space.
+    #[error(transparent)]
+    Space(#[from] SpaceError),
+}
+
+/// Why a pipeline cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PipelineError {
+    /// No stages.
+    #[error("stages: at least one stage is needed")]
+    NoStages,
+    /// The start point does not fit the space.
+    #[error("start point must have {dim} unit coordinates in [0, 1]")]
+    StartPoint {
+        /// The space's dimension.
+        dim: usize,
+    },
+    /// A stage's settings are not valid.
+    #[error(transparent)]
+    Spec(#[from] SpecError),
+    /// The free parameters do not make a space.
+    #[error(transparent)]
+    Space(#[from] SpaceError),
+    /// Stage `index` cannot be built.
+    #[error("stages[{index}]: {error}")]
+    Stage {
+        /// The stage's index.
+        index: usize,
+        /// Why (its message is part of this error's).
+        error: StageError,
+    },
+}
 
 /// The algorithm of the running stage.
 #[derive(Debug, Clone)]
@@ -55,17 +104,17 @@ pub fn build_stage(
     space: &Space,
     start: Option<&[f64]>,
     seed: u64,
-) -> Result<StageAlgorithm, String> {
+) -> Result<StageAlgorithm, StageError> {
     let d = space.dim();
     let b = spec.budget;
     let name = spec.algorithm;
     let global = |o: GlobalOptions| {
         GlobalAlgorithm::new(d, start, o, b, seed)
             .map(|a| StageAlgorithm::Global(Box::new(a)))
-            .map_err(|e| format!("{name}: {e}"))
+            .map_err(|error| StageError::Global { algorithm: name, error })
     };
     let inf = |r: Result<InferenceAlgorithm, inference::InferenceError>| {
-        r.map(|a| StageAlgorithm::Inference(Box::new(a))).map_err(|e| e.to_string())
+        Ok(r.map(|a| StageAlgorithm::Inference(Box::new(a)))?)
     };
     match name {
         AlgorithmName::Sensitivity => {
@@ -250,19 +299,20 @@ impl Pipeline {
     /// defaults). Every stage is built once up front, on as many parameters as it can have free
     /// (all of them, or at most a preceding screen's `keep`), so that bad options or a budget too
     /// small for an algorithm are reported before anything runs.
-    pub fn new(space: Space, stages: Vec<StageSpec>, start: Vec<f64>, seed: u64) -> Result<Self, String> {
+    pub fn new(space: Space, stages: Vec<StageSpec>, start: Vec<f64>, seed: u64) -> Result<Self, PipelineError> {
         if stages.is_empty() {
-            return Err("stages: at least one stage is needed".into());
+            return Err(PipelineError::NoStages);
         }
         if start.len() != space.dim() || start.iter().any(|u| !(0.0..=1.0).contains(u)) {
-            return Err(format!("start point must have {} unit coordinates in [0, 1]", space.dim()));
+            return Err(PipelineError::StartPoint { dim: space.dim() });
         }
         // the largest free set each stage can see: a screen keeps at most `keep` (default 20)
         let mut dim = space.dim();
         for (k, s) in stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
-            let sub = Space::new(space.params()[..dim].to_vec()).map_err(|e| e.to_string())?;
-            build_stage(s, &sub, Some(&start[..dim]), stage_seed(seed, k)).map_err(|e| format!("stages[{k}]: {e}"))?;
+            let sub = Space::new(space.params()[..dim].to_vec())?;
+            build_stage(s, &sub, Some(&start[..dim]), stage_seed(seed, k))
+                .map_err(|error| PipelineError::Stage { index: k, error })?;
             if matches!(s.algorithm, AlgorithmName::Sensitivity | AlgorithmName::Morris) {
                 dim = dim.min(s.keep.unwrap_or(SensitivityOptions::default().max_free));
             }
@@ -339,11 +389,11 @@ impl Pipeline {
         self.error.is_some() || (self.running.is_none() && self.next_stage >= self.stages.len())
     }
 
-    fn start_stage(&mut self) -> Result<(), String> {
+    fn start_stage(&mut self) -> Result<(), StageError> {
         let k = self.next_stage;
         let spec = &self.stages[k];
         let params: Vec<_> = self.active.iter().map(|&i| self.space.params()[i].clone()).collect();
-        let sub = Space::new(params).map_err(|e| e.to_string())?;
+        let sub = Space::new(params)?;
         let start: Vec<f64> = self.active.iter().map(|&i| self.anchor[i]).collect();
         let algorithm = build_stage(spec, &sub, Some(&start), stage_seed(self.seed, k))?;
         self.running = Some(Running {

@@ -5,9 +5,9 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::api::Outcome;
-use crate::cost::{self, Fit, Weights};
-use crate::data::Dataset;
-use crate::model::Model;
+use crate::cost::{self, Fit, FitError, Weights};
+use crate::data::{DataError, Dataset};
+use crate::model::{Model, ModelError};
 
 /// One experiment of a calibration.
 #[derive(Clone)]
@@ -34,37 +34,36 @@ pub struct Problem {
 impl Problem {
     /// Checks that the weights select some data in every experiment and that every weighted
     /// quantity occurs in some experiment.
-    pub fn new(experiments: Vec<Experiment>, weights: Weights) -> Result<Self, String> {
+    pub fn new(experiments: Vec<Experiment>, weights: Weights) -> Result<Self, ProblemError> {
         for e in &experiments {
             if cost::counted_points(&e.data, &weights) == 0 {
-                return Err(format!(
-                    "experiment `{}`: none of its data enters the cost (its quantities: {}; weighted: {})",
-                    e.name,
-                    e.data.quantities().join(", "),
-                    weights.0.keys().cloned().collect::<Vec<_>>().join(", ")
-                ));
+                return Err(ProblemError::NoDataInCost {
+                    experiment: e.name.clone(),
+                    quantities: e.data.quantities(),
+                    weighted: weights.0.keys().cloned().collect(),
+                });
             }
         }
         for q in weights.0.keys() {
             if !experiments.iter().any(|e| e.data.quantities().contains(q)) {
-                return Err(format!("weights.{q}: no experiment has data of this quantity"));
+                return Err(ProblemError::WeightWithoutData { quantity: q.clone() });
             }
         }
         Ok(Self { experiments, weights })
     }
 
     /// Cost of experiment `k` at `parameters`, with its parts.
-    pub fn fit_experiment(&self, k: usize, parameters: &BTreeMap<String, f64>) -> Result<Fit, String> {
+    pub fn fit_experiment(&self, k: usize, parameters: &BTreeMap<String, f64>) -> Result<Fit, ExperimentError> {
         let e = &self.experiments[k];
-        let out = e.model.evaluate(parameters).map_err(|m| format!("experiment `{}`: {m}", e.name))?;
-        cost::fit(&out, &e.data, &self.weights).map_err(|m| format!("experiment `{}`: {m}", e.name))
+        evaluate_and_fit(e, &self.weights, parameters)
+            .map_err(|error| ExperimentError { experiment: e.name.clone(), error })
     }
 
     /// Cost of experiment `k` as an outcome.
     pub fn evaluate_experiment(&self, k: usize, parameters: &BTreeMap<String, f64>) -> Outcome {
         match self.fit_experiment(k, parameters) {
             Ok(f) => Outcome::Ok { cost: f.cost },
-            Err(reason) => Outcome::Failed { reason },
+            Err(e) => Outcome::Failed { reason: e.to_string() },
         }
     }
 
@@ -86,6 +85,130 @@ impl Problem {
     }
 }
 
+/// Runs `experiment`'s model at `parameters` and compares the output with its data.
+pub fn evaluate_and_fit(
+    experiment: &Experiment,
+    weights: &Weights,
+    parameters: &BTreeMap<String, f64>,
+) -> Result<Fit, EvaluationError> {
+    let out = experiment.model.evaluate(parameters)?;
+    Ok(cost::fit(&out, &experiment.data, weights)?)
+}
+
+/// Why a problem cannot be built from its experiments and weights.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ProblemError {
+    /// No series of an experiment carries a weight.
+    #[error(
+        "experiment `{experiment}`: none of its data enters the cost (its quantities: {}; weighted: {})",
+        quantities.join(", "),
+        weighted.join(", ")
+    )]
+    NoDataInCost {
+        /// The experiment's name.
+        experiment: String,
+        /// The quantities of its data.
+        quantities: Vec<String>,
+        /// The weighted quantities.
+        weighted: Vec<String>,
+    },
+    /// A weighted quantity that no experiment has data of.
+    #[error("weights.{quantity}: no experiment has data of this quantity")]
+    WeightWithoutData {
+        /// The quantity.
+        quantity: String,
+    },
+}
+
+/// Why one evaluation of an experiment has no cost.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EvaluationError {
+    /// The model gave no output.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The output cannot be compared with the data.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+}
+
+/// An evaluation of a named experiment that has no cost.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("experiment `{experiment}`: {error}")]
+pub struct ExperimentError {
+    /// The experiment's name.
+    pub experiment: String,
+    /// Why (its message is part of this error's).
+    pub error: EvaluationError,
+}
+
+/// Why an experiment cannot be built from its case and data texts.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BuildError {
+    /// The case text is not a valid case.
+    #[error(transparent)]
+    Case(#[from] cryofit_solver::case::CaseError),
+    /// The data text is not a valid data file.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// The data name a station that the case does not have.
+    #[error(
+        "{data_label}: station `{station}` ({quantity}) is not a station of {case_label} (its stations: {})",
+        case_stations.join(", ")
+    )]
+    UnknownStation {
+        /// Names the data.
+        data_label: String,
+        /// Names the case.
+        case_label: String,
+        /// The station of the data.
+        station: String,
+        /// A quantity measured there.
+        quantity: String,
+        /// The case's stations.
+        case_stations: Vec<String>,
+    },
+    /// The data run past the case's end time.
+    #[error(
+        "{data_label}: the data run to {data_end_s} s but {case_label} ends at time.end_s = {case_end_s} s; lengthen the case"
+    )]
+    DataPastCase {
+        /// Names the data.
+        data_label: String,
+        /// Names the case.
+        case_label: String,
+        /// Last data time, s.
+        data_end_s: f64,
+        /// The case's `time.end_s`, s.
+        case_end_s: f64,
+    },
+    /// The case's fluid table cannot be loaded.
+    #[error("{case_label}: {message}")]
+    Fluid {
+        /// Names the case.
+        case_label: String,
+        /// The loader's reason.
+        message: String,
+    },
+    /// The model cannot be built (for example the case's `[parameters]`).
+    #[error("{case_label}: {error}")]
+    Model {
+        /// Names the case.
+        case_label: String,
+        /// Why (its message is part of this error's).
+        error: ModelError,
+    },
+}
+
+impl BuildError {
+    /// True when the error lies in the data text (rather than in the case or its fluid).
+    pub fn is_in_data(&self) -> bool {
+        matches!(self, Self::Data(_) | Self::UnknownStation { .. } | Self::DataPastCase { .. })
+    }
+}
+
 /// Builds one experiment from the texts of its case and data files (`*_label` name them in
 /// errors): checks that every measured station exists in the case, under the same name, and that
 /// the case runs at least as long as the data. The experiment's model runs only to the end of
@@ -103,28 +226,32 @@ pub fn experiment_from_texts(
     fluid: impl FnOnce(&str) -> Result<Arc<cryofit_solver::fluids::FluidTable>, String>,
     fixed: &cryofit_solver::params::ParameterSet,
     max_evaluation_s: Option<f64>,
-) -> Result<Experiment, String> {
-    let case = cryofit_solver::case::Case::from_toml(case_text, case_label).map_err(|e| e.to_string())?;
-    let data = Dataset::from_csv(data_text, data_label).map_err(|e| e.to_string())?;
+) -> Result<Experiment, BuildError> {
+    let case = cryofit_solver::case::Case::from_toml(case_text, case_label)?;
+    let data = Dataset::from_csv(data_text, data_label)?;
     for (station, quantity) in data.series.keys() {
         if !case.stations.iter().any(|s| &s.name == station) {
-            let known: Vec<&str> = case.stations.iter().map(|s| s.name.as_str()).collect();
-            return Err(format!(
-                "{data_label}: station `{station}` ({quantity}) is not a station of {case_label} (its stations: {})",
-                known.join(", ")
-            ));
+            return Err(BuildError::UnknownStation {
+                data_label: data_label.to_string(),
+                case_label: case_label.to_string(),
+                station: station.clone(),
+                quantity: quantity.clone(),
+                case_stations: case.stations.iter().map(|s| s.name.clone()).collect(),
+            });
         }
     }
     if data.end_time() > case.time.end_s {
-        return Err(format!(
-            "{data_label}: the data run to {} s but {case_label} ends at time.end_s = {} s; lengthen the case",
-            data.end_time(),
-            case.time.end_s
-        ));
+        return Err(BuildError::DataPastCase {
+            data_label: data_label.to_string(),
+            case_label: case_label.to_string(),
+            data_end_s: data.end_time(),
+            case_end_s: case.time.end_s,
+        });
     }
-    let table = fluid(&case.fluid.name).map_err(|e| format!("{case_label}: {e}"))?;
+    let table =
+        fluid(&case.fluid.name).map_err(|message| BuildError::Fluid { case_label: case_label.to_string(), message })?;
     let model = crate::model::SolverModel::new(case, table, fixed)
-        .map_err(|e| format!("{case_label}: {e}"))?
+        .map_err(|error| BuildError::Model { case_label: case_label.to_string(), error })?
         .with_wall_limit(max_evaluation_s)
         .with_end_at(data.end_time());
     Ok(Experiment { name: name.to_string(), model: Arc::new(model), data })

@@ -127,6 +127,8 @@ fn bad_stage_options_are_refused_up_front() {
     let mut st = stages();
     st[2].budget = 5; // too small for the Hessian of 5 parameters
     let e = Pipeline::new(s, st, vec![0.5; 5], 1).unwrap_err();
+    assert!(matches!(e, cryofit_calib::pipeline::PipelineError::Stage { index: 2, .. }), "{e:?}");
+    let e = e.to_string();
     assert!(e.starts_with("stages[2]: ") && e.contains("budget"), "{e}");
 }
 

@@ -140,7 +140,7 @@ impl<'a> Context<'a> {
         let spec = serde_json::from_value::<api::CreateCalibration>(c.spec.clone())
             .map_err(|e| format!("the stored calibration request cannot be read: {e}"))
             .map(|req| crate::validate::spec_of(&req, &d.experiments));
-        let space = spec.as_ref().map_err(Clone::clone).and_then(|s| s.space());
+        let space = spec.as_ref().map_err(Clone::clone).and_then(|s| s.space().map_err(|e| e.to_string()));
         let stages = spec.as_ref().map(|s| s.stages.clone()).unwrap_or_default();
         let reports = c
             .stages
@@ -184,7 +184,8 @@ impl<'a> Context<'a> {
                         })
                     })
                     .collect();
-                let draws = gaussian_draws(&g.centre_physical, &g.covariance_physical, &bounds, 1000, seed)?;
+                let draws = gaussian_draws(&g.centre_physical, &g.covariance_physical, &bounds, 1000, seed)
+                    .map_err(|e| e.to_string())?;
                 return Ok((r.free.clone(), draws, "Gaussian approximation of the variance stage"));
             }
         }
@@ -553,7 +554,7 @@ fn boiling_figure(
     };
     let set = match e.model.parameter_set(best) {
         Ok(s) => s,
-        Err(m) => return skipped(name, title, m),
+        Err(m) => return skipped(name, title, m.to_string()),
     };
     let correlations: CorrelationSet = e.case.physics.correlations.parse().unwrap_or_default();
     let table = match fluids(&e.case.fluid.name) {

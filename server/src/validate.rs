@@ -26,6 +26,7 @@ pub fn experiment(req: &api::CreateExperiment, fluids: &FluidLoader, limits: &Li
     let built =
         experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &ParameterSet::new(), None)
             .map_err(|m| {
+                let m = m.to_string();
                 let field = if m.starts_with("data") { "data" } else { "case" };
                 Invalid::at(field, m)
             })?;
@@ -95,7 +96,7 @@ pub fn calibration(
     // sizes first (plain arithmetic on the request): building the pipeline allocates what its
     // stages ask for, and the limits name the flag that sets them
     limits::check_calibration(&spec, spec.parameters.len(), limits)?;
-    spec.validate().map_err(Invalid::from_message)?;
+    spec.validate().map_err(|e| Invalid::from_message(e.to_string()))?;
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
         fixed.set(name, v).map_err(|e| Invalid::at(format!("fixed.{name}"), e.to_string()))?;
@@ -123,7 +124,7 @@ pub fn calibration(
             &fixed,
             Some(spec.max_evaluation_s),
         )
-        .map_err(|m| Invalid::at(field.clone(), m))?;
+        .map_err(|m| Invalid::at(field.clone(), m.to_string()))?;
         if let Some(model) = exp.model.as_any().downcast_ref::<SolverModel>() {
             limits::check_outputs(model, &case_label, &field, limits)?;
         }
@@ -133,11 +134,11 @@ pub fn calibration(
         built.push(exp);
     }
     Problem::new(built, spec.weights()).map_err(|m| {
-        let mut inv = Invalid::from_message(m);
+        let mut inv = Invalid::from_message(m.to_string());
         inv.field.get_or_insert_with(|| "experiments".into());
         inv
     })?;
-    let space = spec.space().map_err(Invalid::from_message)?;
+    let space = spec.space().map_err(|e| Invalid::from_message(e.to_string()))?;
     let start: Vec<f64> = space
         .params()
         .iter()
@@ -145,7 +146,7 @@ pub fn calibration(
         .map(|(i, p)| space.unit(i, params::spec(&p.name).map_or(0.5 * (p.lower + p.upper), |s| s.default)))
         .collect();
     let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|m| {
-        let mut inv = Invalid::from_message(m);
+        let mut inv = Invalid::from_message(m.to_string());
         if inv.field.is_none() {
             inv.field = Some("stages".into());
         }

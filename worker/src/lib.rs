@@ -22,8 +22,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use cryofit_api as api;
-use cryofit_calib::cost::{self, Weight, Weights};
-use cryofit_calib::problem::{Experiment, experiment_from_texts};
+use cryofit_calib::cost::{Weight, Weights};
+use cryofit_calib::problem::{Experiment, evaluate_and_fit, experiment_from_texts};
 use cryofit_solver::fluids::FluidTable;
 use cryofit_solver::params::ParameterSet;
 
@@ -172,8 +172,7 @@ impl PreparedCache {
 /// model become failed evaluations.
 fn evaluate(p: &Prepared, parameters: &BTreeMap<String, f64>) -> (api::JobOutcome, Option<Vec<api::SeriesCost>>) {
     let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        let out = p.experiment.model.evaluate(parameters)?;
-        cost::fit(&out, &p.experiment.data, &p.weights)
+        evaluate_and_fit(&p.experiment, &p.weights, parameters)
     }));
     match run {
         Ok(Ok(fit)) => {
@@ -564,7 +563,8 @@ fn build(e: &api::Experiment, ctx: &api::JobContext, fluids: &FluidLoader) -> Re
         loader,
         &fixed,
         Some(ctx.max_evaluation_s),
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     let weights =
         Weights(ctx.weights.iter().map(|(q, w)| (q.clone(), Weight { weight: w.weight, sigma: w.sigma })).collect());
     let bytes = 4096 + 16 * experiment.data.len() + e.case.len();
