@@ -16,7 +16,7 @@
 
 pub mod client;
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use std::future::Future;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -232,77 +232,203 @@ enum Event {
 
 /// Runs the worker until `shutdown` resolves (then drains: finishes and reports the jobs in hand)
 /// or, with [`WorkerSettings::exit_when_idle`], until it has had no job for that long.
+///
+/// Each turn of the loop goes through the same phases: [`Worker::drain`] (once shutting down:
+/// drop the jobs not started, stop at the drain deadline), [`Worker::dispatch`] (start the jobs
+/// whose experiment is prepared on free slots), [`Worker::should_exit`] (idle or drained),
+/// [`Worker::claim`] (lease more jobs while fewer than twice the slots are in hand), then
+/// [`Worker::wait`] for the next thing to happen: an evaluation done, a result reported, an
+/// experiment prepared, a lease lost ([`Worker::handle`]), a heartbeat due
+/// ([`Worker::heartbeat`]) or the shutdown signal.
 pub async fn run(
     client: Client,
     settings: WorkerSettings,
     fluids: FluidLoader,
     shutdown: impl Future<Output = ()> + Send,
 ) -> Result<Summary, WorkerError> {
-    let slots = settings.slots.max(1);
-    let fluids = shared_fluids(fluids);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(slots)
-        .thread_name(|i| format!("cryofit-eval-{i}"))
-        .build()
-        .map_err(|e| WorkerError::Pool { slots, message: e.to_string() })?;
-    let pool = Arc::new(pool);
-    let hashes = fluid_hashes(&fluids);
-    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel::<Event>();
-    let mut summary = Summary::default();
-    let mut held: HashMap<i64, Held> = HashMap::new();
-    let mut waiting: VecDeque<i64> = VecDeque::new();
-    let mut running = 0usize;
-    let mut reporting = 0usize;
-    let mut contexts: HashMap<i64, api::JobContext> = HashMap::new();
-    let mut prepared = PreparedCache::new(settings.cache_bytes);
-    let mut preparing: std::collections::HashSet<(i64, i64)> = Default::default();
-    let mut refused_logged: std::collections::HashSet<i64> = Default::default();
-    let mut draining = false;
-    let mut drain_deadline: Option<Instant> = None;
-    let mut idle_since = Instant::now();
-    let mut next_claim = Instant::now();
-    let mut claim_delay = Duration::from_millis(50);
-    let mut heartbeat = tokio::time::interval(Duration::from_secs(5));
-    heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut lease_s = 30.0f64;
+    let (mut worker, mut rx) = Worker::new(client, settings, fluids)?;
     tokio::pin!(shutdown);
-
     loop {
-        if draining {
-            // jobs not started stay with the coordinator: their leases expire and they are
-            // handed out again
-            for id in waiting.drain(..) {
-                held.remove(&id);
-            }
-            if let Some(deadline) = drain_deadline
-                && Instant::now() >= deadline
-            {
-                tracing::warn!(
-                    running,
-                    drain_timeout_s = settings.drain_timeout.as_secs_f64(),
-                    "drain timeout: exiting without the evaluations still running (their leases expire)"
-                );
-                break;
-            }
+        if worker.drain() == Flow::Stop {
+            break;
         }
-        // dispatch waiting jobs whose experiment is ready onto free slots
+        worker.dispatch();
+        let in_hand = worker.held.len();
+        if worker.should_exit() {
+            break;
+        }
+        if worker.claim(in_hand, &mut shutdown).await? == Flow::Continue {
+            continue;
+        }
+        match worker.wait(&mut rx, &mut shutdown).await {
+            Wake::Event(Some(ev)) => worker.handle(ev),
+            Wake::Event(None) => break,
+            Wake::Heartbeat => worker.heartbeat(),
+            Wake::Shutdown => {
+                tracing::info!(
+                    running = worker.running,
+                    drain_timeout_s = worker.settings.drain_timeout.as_secs_f64(),
+                    "shutdown: finishing the evaluations running, starting no more"
+                );
+                worker.begin_drain();
+            }
+            Wake::Timeout => {}
+        }
+    }
+    Ok(worker.summary)
+}
+
+/// Whether the worker's loop goes on with the current turn, starts the next one, or stops.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Flow {
+    /// Go on with this turn's next phase.
+    Next,
+    /// Start the next turn at once (jobs were claimed).
+    Continue,
+    /// Leave the loop.
+    Stop,
+}
+
+/// What ended a wait of the worker's loop.
+enum Wake {
+    /// A message from a job, a report or a preparation (`None`: every sender is gone).
+    Event(Option<Event>),
+    /// Heartbeats are due.
+    Heartbeat,
+    /// The shutdown signal.
+    Shutdown,
+    /// Time to look again (claim, drain deadline).
+    Timeout,
+}
+
+/// The worker's loop state: the jobs in hand, the slots in use, the prepared experiments, and
+/// the timers of claims, heartbeats and the drain.
+struct Worker {
+    client: Client,
+    settings: WorkerSettings,
+    slots: usize,
+    fluids: FluidLoader,
+    pool: Arc<rayon::ThreadPool>,
+    hashes: BTreeMap<String, String>,
+    tx: tokio::sync::mpsc::UnboundedSender<Event>,
+    summary: Summary,
+    held: HashMap<i64, Held>,
+    waiting: VecDeque<i64>,
+    running: usize,
+    reporting: usize,
+    contexts: HashMap<i64, api::JobContext>,
+    prepared: PreparedCache,
+    preparing: HashSet<(i64, i64)>,
+    refused_logged: HashSet<i64>,
+    draining: bool,
+    drain_deadline: Option<Instant>,
+    idle_since: Instant,
+    next_claim: Instant,
+    claim_delay: Duration,
+    heartbeat: tokio::time::Interval,
+    lease_s: f64,
+}
+
+/// Pause before the next claim after jobs were claimed or a result was counted.
+const CLAIM_DELAY_MIN: Duration = Duration::from_millis(50);
+
+/// Longest pause between claims that found no job.
+const CLAIM_DELAY_MAX: Duration = Duration::from_millis(500);
+
+impl Worker {
+    /// The loop state and the receiver of its events; starts the evaluation pool.
+    fn new(
+        client: Client,
+        settings: WorkerSettings,
+        fluids: FluidLoader,
+    ) -> Result<(Self, tokio::sync::mpsc::UnboundedReceiver<Event>), WorkerError> {
+        let slots = settings.slots.max(1);
+        let fluids = shared_fluids(fluids);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(slots)
+            .thread_name(|i| format!("cryofit-eval-{i}"))
+            .build()
+            .map_err(|e| WorkerError::Pool { slots, message: e.to_string() })?;
+        let hashes = fluid_hashes(&fluids);
+        let (tx, rx) = tokio::sync::mpsc::unbounded_channel::<Event>();
+        let mut heartbeat = tokio::time::interval(Duration::from_secs(5));
+        heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let worker = Self {
+            client,
+            slots,
+            fluids,
+            pool: Arc::new(pool),
+            hashes,
+            tx,
+            summary: Summary::default(),
+            held: HashMap::new(),
+            waiting: VecDeque::new(),
+            running: 0,
+            reporting: 0,
+            contexts: HashMap::new(),
+            prepared: PreparedCache::new(settings.cache_bytes),
+            preparing: HashSet::new(),
+            refused_logged: HashSet::new(),
+            draining: false,
+            drain_deadline: None,
+            idle_since: Instant::now(),
+            next_claim: Instant::now(),
+            claim_delay: CLAIM_DELAY_MIN,
+            heartbeat,
+            lease_s: 30.0,
+            settings,
+        };
+        Ok((worker, rx))
+    }
+
+    /// Stops claiming and starting jobs; running evaluations get the drain timeout to finish.
+    fn begin_drain(&mut self) {
+        self.draining = true;
+        self.drain_deadline = Some(Instant::now() + self.settings.drain_timeout);
+    }
+
+    /// While draining: drops the jobs not started (they stay with the coordinator: their leases
+    /// expire and they are handed out again), and stops once the drain deadline has passed.
+    fn drain(&mut self) -> Flow {
+        if !self.draining {
+            return Flow::Next;
+        }
+        for id in self.waiting.drain(..) {
+            self.held.remove(&id);
+        }
+        if let Some(deadline) = self.drain_deadline
+            && Instant::now() >= deadline
+        {
+            tracing::warn!(
+                running = self.running,
+                drain_timeout_s = self.settings.drain_timeout.as_secs_f64(),
+                "drain timeout: exiting without the evaluations still running (their leases expire)"
+            );
+            return Flow::Stop;
+        }
+        Flow::Next
+    }
+
+    /// Starts waiting jobs whose experiment is prepared on free slots; starts preparing the
+    /// experiments of the others.
+    fn dispatch(&mut self) {
         let mut k = 0;
-        while running < slots && k < waiting.len() {
-            let id = waiting[k];
-            let Some(h) = held.get_mut(&id) else {
-                waiting.remove(k);
+        while self.running < self.slots && k < self.waiting.len() {
+            let id = self.waiting[k];
+            let Some(h) = self.held.get_mut(&id) else {
+                self.waiting.remove(k);
                 continue;
             };
             let key = (h.job.calibration_id, h.job.experiment_id);
-            match prepared.get(&key) {
+            match self.prepared.get(&key) {
                 Some(p) => {
-                    waiting.remove(k);
-                    running += 1;
+                    self.waiting.remove(k);
+                    self.running += 1;
                     h.started = Some(Instant::now());
                     let parameters = h.job.parameters.clone();
-                    let tx = tx.clone();
+                    let tx = self.tx.clone();
                     let span = tracing::info_span!("job", job = id, calibration = key.0, experiment = key.1);
-                    pool.spawn(move || {
+                    self.pool.spawn(move || {
                         let _g = span.enter();
                         let t = Instant::now();
                         let (outcome, breakdown) = evaluate(&p, &parameters);
@@ -311,188 +437,232 @@ pub async fn run(
                     });
                 }
                 None => {
-                    if preparing.insert(key) {
-                        spawn_prepare(&client, &fluids, key, contexts.get(&key.0).cloned(), tx.clone());
+                    if self.preparing.insert(key) {
+                        let context = self.contexts.get(&key.0).cloned();
+                        spawn_prepare(&self.client, &self.fluids, key, context, self.tx.clone());
                     }
                     k += 1;
                 }
             }
         }
+    }
 
-        let in_hand = held.len();
-        if held.is_empty() && reporting == 0 {
-            if draining {
-                break;
-            }
-            if let Some(limit) = settings.exit_when_idle
-                && idle_since.elapsed() >= limit
-            {
-                tracing::info!(idle_s = limit.as_secs_f64(), "idle: exiting");
-                break;
-            }
-        } else {
-            idle_since = Instant::now();
+    /// True when the worker is done: drained, or idle for [`WorkerSettings::exit_when_idle`].
+    fn should_exit(&mut self) -> bool {
+        if !(self.held.is_empty() && self.reporting == 0) {
+            self.idle_since = Instant::now();
+            return false;
         }
+        if self.draining {
+            return true;
+        }
+        if let Some(limit) = self.settings.exit_when_idle
+            && self.idle_since.elapsed() >= limit
+        {
+            tracing::info!(idle_s = limit.as_secs_f64(), "idle: exiting");
+            return true;
+        }
+        false
+    }
 
-        // claim more when below twice the slots
-        if !draining && in_hand < 2 * slots && Instant::now() >= next_claim {
-            let req = api::ClaimRequest {
-                worker: settings.name.clone(),
-                slots: slots as u32,
-                max_jobs: (2 * slots - in_hand).min(1000) as u32,
-                solver_version: api::SOLVER_VERSION.to_string(),
-                fluid_hashes: hashes.clone(),
-            };
-            let claimed = tokio::select! {
-                r = client.claim(&req) => Some(r),
-                _ = &mut shutdown => {
-                    draining = true;
-                    drain_deadline = Some(Instant::now() + settings.drain_timeout);
-                    None
+    /// Claims more jobs when fewer than twice the slots are in hand (`in_hand`) and a claim is
+    /// due; the shutdown signal interrupts the claim. [`Flow::Continue`] when jobs came; an error
+    /// when the coordinator refuses the worker's token.
+    async fn claim(
+        &mut self,
+        in_hand: usize,
+        shutdown: &mut std::pin::Pin<&mut impl Future<Output = ()>>,
+    ) -> Result<Flow, WorkerError> {
+        if self.draining || in_hand >= 2 * self.slots || Instant::now() < self.next_claim {
+            return Ok(Flow::Next);
+        }
+        let req = api::ClaimRequest {
+            worker: self.settings.name.clone(),
+            slots: self.slots as u32,
+            max_jobs: (2 * self.slots - in_hand).min(1000) as u32,
+            solver_version: api::SOLVER_VERSION.to_string(),
+            fluid_hashes: self.hashes.clone(),
+        };
+        let claimed = tokio::select! {
+            r = self.client.claim(&req) => Some(r),
+            _ = shutdown => None,
+        };
+        match claimed {
+            Some(Ok(resp)) => {
+                self.claimed(resp);
+                Ok(Flow::Continue)
+            }
+            Some(Err(e)) => {
+                if matches!(e, ClientError::Api { status: 401 | 403, .. }) {
+                    return Err(e.into());
                 }
-            };
-            match claimed {
-                Some(Ok(resp)) => {
-                    for r in &resp.refused {
-                        if refused_logged.insert(r.calibration_id) {
-                            tracing::warn!(calibration = r.calibration_id, reason = %r.reason, "refused jobs of a calibration");
-                        }
-                    }
-                    for c in resp.calibrations {
-                        contexts.insert(c.calibration_id, c);
-                    }
-                    if resp.jobs.is_empty() {
-                        next_claim = Instant::now() + claim_delay;
-                        claim_delay = (claim_delay * 2).min(Duration::from_millis(500));
-                    } else {
-                        claim_delay = Duration::from_millis(50);
-                        for j in resp.jobs {
-                            lease_s = j.lease_s;
-                            waiting.push_back(j.id);
-                            held.insert(j.id, Held { job: j, started: None });
-                        }
-                        let period = Duration::from_secs_f64((lease_s / 3.0).clamp(0.05, 10.0));
-                        if heartbeat.period() != period {
-                            heartbeat = tokio::time::interval(period);
-                            heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-                        }
-                    }
-                    continue;
-                }
-                Some(Err(e)) => {
-                    if matches!(e, ClientError::Api { status: 401 | 403, .. }) {
-                        return Err(e.into());
-                    }
-                    tracing::warn!(error = %e, "claim failed");
-                    next_claim = Instant::now() + Duration::from_secs(1);
-                }
-                None => {}
+                tracing::warn!(error = %e, "claim failed");
+                self.next_claim = Instant::now() + Duration::from_secs(1);
+                Ok(Flow::Next)
+            }
+            None => {
+                self.begin_drain();
+                Ok(Flow::Next)
             }
         }
+    }
 
-        let mut wait = next_claim.saturating_duration_since(Instant::now()).max(Duration::from_millis(5));
-        if let Some(deadline) = drain_deadline {
+    /// Takes in a claim's answer: refusals (logged once per calibration), calibration contexts,
+    /// and the jobs; backs off while claims come back empty; follows the lease length with the
+    /// heartbeat period.
+    fn claimed(&mut self, resp: api::ClaimResponse) {
+        for r in &resp.refused {
+            if self.refused_logged.insert(r.calibration_id) {
+                tracing::warn!(calibration = r.calibration_id, reason = %r.reason, "refused jobs of a calibration");
+            }
+        }
+        for c in resp.calibrations {
+            self.contexts.insert(c.calibration_id, c);
+        }
+        if resp.jobs.is_empty() {
+            self.next_claim = Instant::now() + self.claim_delay;
+            self.claim_delay = (self.claim_delay * 2).min(CLAIM_DELAY_MAX);
+            return;
+        }
+        self.claim_delay = CLAIM_DELAY_MIN;
+        for j in resp.jobs {
+            self.lease_s = j.lease_s;
+            self.waiting.push_back(j.id);
+            self.held.insert(j.id, Held { job: j, started: None });
+        }
+        let period = Duration::from_secs_f64((self.lease_s / 3.0).clamp(0.05, 10.0));
+        if self.heartbeat.period() != period {
+            self.heartbeat = tokio::time::interval(period);
+            self.heartbeat.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        }
+    }
+
+    /// Waits for an event, a heartbeat, the shutdown signal (once) or the next claim or drain
+    /// deadline, whichever comes first.
+    async fn wait(
+        &mut self,
+        rx: &mut tokio::sync::mpsc::UnboundedReceiver<Event>,
+        shutdown: &mut std::pin::Pin<&mut impl Future<Output = ()>>,
+    ) -> Wake {
+        let mut wait = self.next_claim.saturating_duration_since(Instant::now()).max(Duration::from_millis(5));
+        if let Some(deadline) = self.drain_deadline {
             wait = wait.min(deadline.saturating_duration_since(Instant::now()).max(Duration::from_millis(5)));
         }
         tokio::select! {
-            ev = rx.recv() => {
-                let Some(ev) = ev else { break };
-                match ev {
-                    Event::Done { job, outcome, breakdown, seconds } => {
-                        running = running.saturating_sub(1);
-                        let Some(h) = held.get(&job) else { continue };
-                        let failed = matches!(outcome, api::JobOutcome::Failed { .. });
-                        let req = api::ResultRequest {
-                            lease_id: h.job.lease_id.clone(),
-                            outcome,
-                            duration_s: Some(seconds),
-                            breakdown,
-                            worker: Some(settings.name.clone()),
-                        };
-                        reporting += 1;
-                        let client = client.clone();
-                        let tx = tx.clone();
-                        tokio::spawn(async move {
-                            let response = client.result(job, &req).await;
-                            let _ = tx.send(Event::Reported { job, response, failed });
-                        });
-                    }
-                    Event::Reported { job, response, failed } => {
-                        reporting -= 1;
-                        held.remove(&job);
-                        // a counted result may have completed a generation: claim again at once
-                        next_claim = Instant::now();
-                        claim_delay = Duration::from_millis(50);
-                        match response {
-                            Ok(r) if r.counted => {
-                                summary.counted += 1;
-                                if failed { summary.failed += 1; }
-                            }
-                            Ok(_) => summary.stale += 1,
-                            Err(e) => tracing::error!(job, error = %e, "result could not be reported"),
-                        }
-                    }
-                    Event::Prepared { key, result } => {
-                        preparing.remove(&key);
-                        match result {
-                            Ok(p) => prepared.insert(key, p),
-                            Err(e) => {
-                                // not remembered: the jobs waiting now fail with the reason, a
-                                // later job of this experiment prepares it again
-                                tracing::error!(calibration = key.0, experiment = key.1, error = %e, "cannot prepare experiment");
-                                let failing: Vec<i64> = waiting
-                                    .iter()
-                                    .copied()
-                                    .filter(|id| held.get(id).is_some_and(|h| (h.job.calibration_id, h.job.experiment_id) == key))
-                                    .collect();
-                                waiting.retain(|id| !failing.contains(id));
-                                for id in failing {
-                                    running += 1;
-                                    let _ = tx.send(Event::Done {
-                                        job: id,
-                                        outcome: api::JobOutcome::Failed { reason: e.clone() },
-                                        breakdown: None,
-                                        seconds: 0.0,
-                                    });
-                                }
-                            }
-                        }
-                    }
-                    Event::Lost { job } => {
-                        // a lease that is not current: drop the job if it has not started
-                        if held.get(&job).is_some_and(|h| h.started.is_none()) {
-                            held.remove(&job);
-                            waiting.retain(|&j| j != job);
-                        }
-                    }
-                }
-            }
-            _ = heartbeat.tick() => {
-                for h in held.values() {
-                    let (client, tx, id, lease) = (client.clone(), tx.clone(), h.job.id, h.job.lease_id.clone());
-                    tokio::spawn(async move {
-                        match client.heartbeat(id, &lease).await {
-                            Ok(r) if r.cancelled => { let _ = tx.send(Event::Lost { job: id }); }
-                            Ok(_) => {}
-                            Err(ClientError::Api { status: 404 | 409, .. }) => { let _ = tx.send(Event::Lost { job: id }); }
-                            Err(e) => tracing::warn!(job = id, error = %e, "heartbeat failed"),
-                        }
-                    });
-                }
-            }
-            _ = &mut shutdown, if !draining => {
-                tracing::info!(
-                    running,
-                    drain_timeout_s = settings.drain_timeout.as_secs_f64(),
-                    "shutdown: finishing the evaluations running, starting no more"
-                );
-                draining = true;
-                drain_deadline = Some(Instant::now() + settings.drain_timeout);
-            }
-            _ = tokio::time::sleep(wait) => {}
+            ev = rx.recv() => Wake::Event(ev),
+            _ = self.heartbeat.tick() => Wake::Heartbeat,
+            _ = shutdown, if !self.draining => Wake::Shutdown,
+            _ = tokio::time::sleep(wait) => Wake::Timeout,
         }
     }
-    Ok(summary)
+
+    /// Handles one message from a job, a report or a preparation.
+    fn handle(&mut self, ev: Event) {
+        match ev {
+            Event::Done { job, outcome, breakdown, seconds } => self.report(job, outcome, breakdown, seconds),
+            Event::Reported { job, response, failed } => self.reported(job, response, failed),
+            Event::Prepared { key, result } => self.prepared(key, result),
+            Event::Lost { job } => {
+                // a lease that is not current: drop the job if it has not started
+                if self.held.get(&job).is_some_and(|h| h.started.is_none()) {
+                    self.held.remove(&job);
+                    self.waiting.retain(|&j| j != job);
+                }
+            }
+        }
+    }
+
+    /// An evaluation ended: frees its slot and reports its outcome in the background.
+    fn report(&mut self, job: i64, outcome: api::JobOutcome, breakdown: Option<Vec<api::SeriesCost>>, seconds: f64) {
+        self.running = self.running.saturating_sub(1);
+        let Some(h) = self.held.get(&job) else { return };
+        let failed = matches!(outcome, api::JobOutcome::Failed { .. });
+        let req = api::ResultRequest {
+            lease_id: h.job.lease_id.clone(),
+            outcome,
+            duration_s: Some(seconds),
+            breakdown,
+            worker: Some(self.settings.name.clone()),
+        };
+        self.reporting += 1;
+        let client = self.client.clone();
+        let tx = self.tx.clone();
+        tokio::spawn(async move {
+            let response = client.result(job, &req).await;
+            let _ = tx.send(Event::Reported { job, response, failed });
+        });
+    }
+
+    /// A result was reported: the job leaves the hand and is counted.
+    fn reported(&mut self, job: i64, response: Result<api::ResultResponse, ClientError>, failed: bool) {
+        self.reporting -= 1;
+        self.held.remove(&job);
+        // a counted result may have completed a generation: claim again at once
+        self.next_claim = Instant::now();
+        self.claim_delay = CLAIM_DELAY_MIN;
+        match response {
+            Ok(r) if r.counted => {
+                self.summary.counted += 1;
+                if failed {
+                    self.summary.failed += 1;
+                }
+            }
+            Ok(_) => self.summary.stale += 1,
+            Err(e) => tracing::error!(job, error = %e, "result could not be reported"),
+        }
+    }
+
+    /// An experiment was prepared (cached), or could not be: then the jobs waiting for it fail
+    /// with the reason. A failure is not remembered: a later job of the experiment prepares it
+    /// again.
+    fn prepared(&mut self, key: (i64, i64), result: Result<Arc<Prepared>, String>) {
+        self.preparing.remove(&key);
+        let e = match result {
+            Ok(p) => {
+                self.prepared.insert(key, p);
+                return;
+            }
+            Err(e) => e,
+        };
+        tracing::error!(calibration = key.0, experiment = key.1, error = %e, "cannot prepare experiment");
+        let held = &self.held;
+        let failing: Vec<i64> = self
+            .waiting
+            .iter()
+            .copied()
+            .filter(|id| held.get(id).is_some_and(|h| (h.job.calibration_id, h.job.experiment_id) == key))
+            .collect();
+        self.waiting.retain(|id| !failing.contains(id));
+        for id in failing {
+            self.running += 1;
+            let _ = self.tx.send(Event::Done {
+                job: id,
+                outcome: api::JobOutcome::Failed { reason: e.clone() },
+                breakdown: None,
+                seconds: 0.0,
+            });
+        }
+    }
+
+    /// Heartbeats every lease in hand in the background; a lease the coordinator no longer
+    /// holds (cancelled, 404, 409) comes back as [`Event::Lost`].
+    fn heartbeat(&self) {
+        for h in self.held.values() {
+            let (client, tx, id, lease) = (self.client.clone(), self.tx.clone(), h.job.id, h.job.lease_id.clone());
+            tokio::spawn(async move {
+                match client.heartbeat(id, &lease).await {
+                    Ok(r) if r.cancelled => {
+                        let _ = tx.send(Event::Lost { job: id });
+                    }
+                    Ok(_) => {}
+                    Err(ClientError::Api { status: 404 | 409, .. }) => {
+                        let _ = tx.send(Event::Lost { job: id });
+                    }
+                    Err(e) => tracing::warn!(job = id, error = %e, "heartbeat failed"),
+                }
+            });
+        }
+    }
 }
 
 /// Fetches an experiment and builds it for a calibration on a blocking thread.
@@ -664,6 +834,59 @@ mod tests {
         assert!(Arc::ptr_eq(&a, &b) && Arc::ptr_eq(&a, &c), "one table for every experiment");
         assert_eq!(copies.load(std::sync::atomic::Ordering::Relaxed), 1);
         assert!(shared("unobtainium").is_err());
+    }
+
+    fn job(id: i64, lease_s: f64) -> api::LeasedJob {
+        api::LeasedJob {
+            id,
+            lease_id: format!("lease-{id}"),
+            lease_s,
+            calibration_id: 1,
+            parameter_set_id: id,
+            experiment_id: 1,
+            parameters: BTreeMap::new(),
+        }
+    }
+
+    #[tokio::test]
+    async fn the_loop_phases_back_off_take_jobs_in_and_drain() {
+        let client = Client::new("http://127.0.0.1:9", None).expect("client");
+        let fluids: FluidLoader = Arc::new(|n: &str| Err(format!("no table {n}")));
+        let (mut w, mut rx) = Worker::new(client, WorkerSettings::new(2), fluids).expect("worker");
+        let empty = || api::ClaimResponse { jobs: vec![], calibrations: vec![], refused: vec![] };
+        // empty claims back off, doubling up to the longest pause
+        for want in [100, 200, 400, 500, 500] {
+            w.claimed(empty());
+            assert_eq!(w.claim_delay, Duration::from_millis(want));
+        }
+        // jobs come in: held and waiting, the backoff reset, heartbeats at a third of the lease
+        w.claimed(api::ClaimResponse { jobs: vec![job(7, 3.0), job(8, 3.0)], ..empty() });
+        assert_eq!((w.held.len(), w.waiting.len()), (2, 2));
+        assert_eq!(w.claim_delay, CLAIM_DELAY_MIN);
+        assert_eq!(w.heartbeat.period(), Duration::from_secs(1));
+        assert!(!w.should_exit(), "jobs in hand");
+        // a lost lease of a job not started drops it
+        w.handle(Event::Lost { job: 8 });
+        assert_eq!((w.held.len(), w.waiting.len()), (1, 1));
+        // an experiment that cannot be prepared fails the jobs waiting for it
+        w.handle(Event::Prepared { key: (1, 1), result: Err("no such experiment".into()) });
+        assert!(w.waiting.is_empty());
+        match rx.try_recv() {
+            Ok(Event::Done { job: 7, outcome: api::JobOutcome::Failed { reason }, .. }) => {
+                assert_eq!(reason, "no such experiment")
+            }
+            _ => panic!("job 7 should have failed"),
+        }
+        // draining drops the jobs not started and exits once nothing is in hand
+        w.claimed(api::ClaimResponse { jobs: vec![job(9, 3.0)], ..empty() });
+        w.held.remove(&7);
+        w.running = 0;
+        w.begin_drain();
+        assert_eq!(w.drain(), Flow::Next);
+        assert!(w.held.is_empty() && w.waiting.is_empty());
+        assert!(w.should_exit());
+        w.drain_deadline = Some(Instant::now());
+        assert_eq!(w.drain(), Flow::Stop, "the drain deadline has passed");
     }
 
     #[test]
