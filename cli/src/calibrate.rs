@@ -28,8 +28,9 @@ use cryofit_solver::params::{self, ParameterSet};
 use cryofit_worker::{Client, WorkerSettings};
 use serde_json::json;
 
+use crate::csv_text::CsvText;
 use crate::fluid_source;
-use crate::simulate::{csv_field, fmt_num, probes_csv, write_outputs};
+use crate::simulate::{fmt_num, probes_csv, write_outputs};
 
 /// Arguments of `cryofit calibrate`.
 #[derive(Debug, Args)]
@@ -198,7 +199,7 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
                 model.run(&run.best_parameters).map_err(|m| anyhow!("best fit, experiment `{}`: {m}", e.name))?
             }
         };
-        files.push((format!("fit-{}.csv", e.name), probes_csv(&out.probes)));
+        files.push((format!("fit-{}.csv", e.name), probes_csv(&out.probes)?));
         fits.push((e, fit, out));
     }
 
@@ -208,9 +209,9 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     let mut outputs: Vec<(String, String)> = vec![
         ("result.json".into(), result),
         ("best.toml".into(), best_toml),
-        ("evaluations.csv".into(), evaluations_csv(&space, &run)),
+        ("evaluations.csv".into(), evaluations_csv(&space, &run)?),
     ];
-    if let Some(draws) = posterior_csv(&run.reports) {
+    if let Some(draws) = posterior_csv(&run.reports)? {
         outputs.push(("posterior.csv".into(), draws));
     }
     outputs.extend(files);
@@ -668,12 +669,12 @@ fn toml_num(v: f64) -> String {
     if s.contains(['.', 'e', 'E']) || s.contains("inf") || s.contains("NaN") { s } else { format!("{s}.0") }
 }
 
-fn evaluations_csv(space: &Space, run: &Run) -> String {
-    let mut s = String::from("id,stage,algorithm,status,cost");
-    for name in space.names() {
-        let _ = write!(s, ",{}", csv_field(name));
-    }
-    s.push_str(",reason\n");
+/// `evaluations.csv`: every told evaluation in the optimiser's order, its cost or failure reason
+/// and the free parameters' values.
+fn evaluations_csv(space: &Space, run: &Run) -> Result<String> {
+    let mut t = CsvText::new(
+        ["id", "stage", "algorithm", "status", "cost"].into_iter().chain(space.names()).chain(["reason"]),
+    )?;
     for r in &run.rows {
         let algorithm =
             usize::try_from(r.stage).ok().and_then(|k| run.stages.get(k)).map_or("?", |st| st.algorithm.as_str());
@@ -681,25 +682,23 @@ fn evaluations_csv(space: &Space, run: &Run) -> String {
             ("ok", Some(cost)) => ("ok", fmt_num(cost), String::new()),
             _ => ("failed", String::new(), r.reason.clone().unwrap_or_default()),
         };
-        let _ = write!(s, "{},{},{algorithm},{status},{cost}", r.job, r.stage);
-        for name in space.names() {
-            let _ = write!(s, ",{}", r.parameters.get(name).map_or_else(String::new, |v| fmt_num(*v)));
-        }
-        let _ = writeln!(s, ",{}", csv_field(&reason));
+        let mut row = vec![r.job.to_string(), r.stage.to_string(), algorithm.to_string(), status.to_string(), cost];
+        row.extend(space.names().map(|name| r.parameters.get(name).map_or_else(String::new, |v| fmt_num(*v))));
+        row.push(reason);
+        t.row(row)?;
     }
-    s
+    t.finish()
 }
 
-fn posterior_csv(reports: &[StageReport]) -> Option<String> {
-    let r = reports.iter().rev().find(|r| r.posterior_draws.is_some())?;
-    let draws = r.posterior_draws.as_ref()?;
-    let mut s = r.free.iter().map(|n| csv_field(n)).collect::<Vec<_>>().join(",");
-    s.push('\n');
+/// `posterior.csv`: the draws of the last stage that made some (an MCMC stage), one a row.
+fn posterior_csv(reports: &[StageReport]) -> Result<Option<String>> {
+    let Some(r) = reports.iter().rev().find(|r| r.posterior_draws.is_some()) else { return Ok(None) };
+    let Some(draws) = r.posterior_draws.as_ref() else { return Ok(None) };
+    let mut t = CsvText::new(&r.free)?;
     for d in draws {
-        s.push_str(&d.iter().map(|v| fmt_num(*v)).collect::<Vec<_>>().join(","));
-        s.push('\n');
+        t.row(d.iter().map(|v| fmt_num(*v)))?;
     }
-    Some(s)
+    t.finish().map(Some)
 }
 
 fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir: &Path, outputs: &[(String, String)]) {

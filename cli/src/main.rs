@@ -3,6 +3,7 @@
 mod bench;
 mod calibrate;
 mod client;
+mod csv_text;
 mod fluid_source;
 mod healthcheck;
 mod params_cmd;

@@ -4,7 +4,6 @@
 //! each station's chilldown time.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
@@ -16,8 +15,9 @@ use cryofit_solver::params::{self, ParameterSet};
 use rayon::prelude::*;
 use serde_json::json;
 
+use crate::csv_text::CsvText;
 use crate::fluid_source;
-use crate::simulate::{csv_field, fmt_num, write_outputs};
+use crate::simulate::{fmt_num, write_outputs};
 
 /// Arguments of `cryofit predict`.
 #[derive(Debug, Args)]
@@ -64,17 +64,7 @@ fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>,
     let (names, rows, method): (Vec<String>, Vec<Vec<f64>>, &'static str) = if posterior.exists() {
         let text =
             std::fs::read_to_string(&posterior).with_context(|| format!("cannot read {}", posterior.display()))?;
-        let mut lines = text.lines();
-        let names: Vec<String> = lines.next().unwrap_or("").split(',').map(|s| s.trim().to_string()).collect();
-        let mut rows = Vec::new();
-        for (k, line) in lines.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
-            let row: Result<Vec<f64>, _> = line.split(',').map(|s| s.trim().parse::<f64>()).collect();
-            let row = row.map_err(|_| anyhow!("{}: line {}: not a row of numbers", posterior.display(), k + 2))?;
-            if row.len() != names.len() {
-                bail!("{}: line {}: {} values for {} columns", posterior.display(), k + 2, row.len(), names.len());
-            }
-            rows.push(row);
-        }
+        let (names, rows) = read_draws(&text, &posterior.display().to_string())?;
         if rows.is_empty() {
             bail!("{}: no draws", posterior.display());
         }
@@ -125,6 +115,26 @@ fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>,
     Ok((sets, method))
 }
 
+/// The draws of a `posterior.csv` (`file` names it in errors): the parameter names of its header
+/// and one row of numbers per draw.
+fn read_draws(text: &str, file: &str) -> Result<(Vec<String>, Vec<Vec<f64>>)> {
+    let mut reader = csv::ReaderBuilder::new().flexible(true).from_reader(text.as_bytes());
+    let names: Vec<String> =
+        reader.headers().map_err(|e| anyhow!("{file}: line 1: {e}"))?.iter().map(|s| s.trim().to_string()).collect();
+    let mut rows = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| anyhow!("{file}: {e}"))?;
+        let line = record.position().map_or(0, csv::Position::line);
+        let row: Result<Vec<f64>, _> = record.iter().map(|s| s.trim().parse::<f64>()).collect();
+        let row = row.map_err(|_| anyhow!("{file}: line {line}: not a row of numbers"))?;
+        if row.len() != names.len() {
+            bail!("{file}: line {line}: {} values for {} columns", row.len(), names.len());
+        }
+        rows.push(row);
+    }
+    Ok((names, rows))
+}
+
 fn quantile(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -166,25 +176,24 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     if ok.iter().any(|o| o.probes.len() != n_rows) {
         bail!("internal error: runs recorded different numbers of probe values");
     }
-    let mut bands = String::from("time_s,station,x_m,quantity,q05,q50,q95\n");
+    let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95"])?;
     let mut values = Vec::with_capacity(ok.len());
     for k in 0..n_rows {
         let o = &ok[0].probes[k];
         values.clear();
         values.extend(ok.iter().map(|r| r.probes[k].value));
         values.sort_by(f64::total_cmp);
-        let _ = writeln!(
-            bands,
-            "{},{},{},{},{},{},{}",
-            fmt_num(o.time_s),
-            csv_field(&o.station),
-            fmt_num(o.x_m),
+        bands.row([
+            &fmt_num(o.time_s),
+            o.station.as_str(),
+            &fmt_num(o.x_m),
             o.quantity,
-            fmt_num(quantile(&values, 0.05)),
-            fmt_num(quantile(&values, 0.5)),
-            fmt_num(quantile(&values, 0.95))
-        );
+            &fmt_num(quantile(&values, 0.05)),
+            &fmt_num(quantile(&values, 0.5)),
+            &fmt_num(quantile(&values, 0.95)),
+        ])?;
     }
+    let bands = bands.finish()?;
     let mut chill = serde_json::Map::new();
     let stations: Vec<String> = case.stations.iter().map(|s| s.name.clone()).collect();
     for st in &stations {

@@ -2,7 +2,6 @@
 //! [--noise QUANTITY=SIGMA]... [--seed N]`.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::io::{IsTerminal, Write as _};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -16,6 +15,7 @@ use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
 
+use crate::csv_text::CsvText;
 use crate::fluid_source;
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
@@ -113,8 +113,8 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     write_outputs(
         &out_dir,
         &[
-            ("probes.csv", probes_csv(&output.probes)),
-            ("profiles.csv", profiles_csv(&output.profiles)),
+            ("probes.csv", probes_csv(&output.probes)?),
+            ("profiles.csv", profiles_csv(&output.profiles)?),
             ("summary.json", summary),
         ],
     )?;
@@ -261,33 +261,22 @@ fn round_sig(v: f64) -> f64 {
     format!("{v:.5e}").parse().unwrap_or(v)
 }
 
-/// A CSV field, quoted when it contains a separator, a quote or a line break.
-pub(crate) fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
-}
-
-pub(crate) fn probes_csv(probes: &[Observation]) -> String {
-    let mut s = String::from("time_s,station,x_m,quantity,value\n");
+/// `probes.csv` (also each `fit-<experiment>.csv` of a calibration): the long format of DESIGN.md
+/// §3.2.
+pub(crate) fn probes_csv(probes: &[Observation]) -> Result<String> {
+    let mut t = CsvText::new(cryofit_calib::data::HEADER.split(','))?;
     for o in probes {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{}",
-            fmt_num(o.time_s),
-            csv_field(&o.station),
-            fmt_num(o.x_m),
-            o.quantity,
-            fmt_num(o.value)
-        );
+        t.row([&fmt_num(o.time_s), o.station.as_str(), &fmt_num(o.x_m), o.quantity, &fmt_num(o.value)])?;
     }
-    s
+    t.finish()
 }
 
-fn profiles_csv(profiles: &[ProfilePoint]) -> String {
-    let mut s = String::from("time_s,x_m,quantity,value\n");
+fn profiles_csv(profiles: &[ProfilePoint]) -> Result<String> {
+    let mut t = CsvText::new(["time_s", "x_m", "quantity", "value"])?;
     for p in profiles {
-        let _ = writeln!(s, "{},{},{},{}", fmt_num(p.time_s), fmt_num(p.x_m), p.quantity, fmt_num(p.value));
+        t.row([&fmt_num(p.time_s), &fmt_num(p.x_m), p.quantity, &fmt_num(p.value)])?;
     }
-    s
+    t.finish()
 }
 
 /// The run summary plus the case path, the parameters set explicitly and the noise settings.
@@ -458,10 +447,21 @@ mod tests {
     }
 
     #[test]
-    fn csv_fields_are_quoted_when_needed() {
-        assert_eq!(csv_field("mid"), "mid");
-        assert_eq!(csv_field("a,b"), "\"a,b\"");
-        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
+    fn probes_with_any_station_name_read_back_as_data() {
+        let obs = |station: &str, t: f64| Observation {
+            time_s: t,
+            station: station.into(),
+            x_m: 6.1,
+            quantity: "wall_temperature_k",
+            value: 290.0 - t,
+        };
+        let name = "TS \"1\",\nnorth";
+        let text = probes_csv(&[obs(name, 0.0), obs(name, 0.5), obs("TS2", 0.0)]).unwrap();
+        assert!(text.starts_with("time_s,station,x_m,quantity,value\n0,\"TS \"\"1\"\",\nnorth\",6.1,"), "{text}");
+        let data = Dataset::from_csv(&text, "probes.csv").unwrap();
+        let s = &data.series[&(name.to_string(), "wall_temperature_k".to_string())];
+        assert_eq!((s.times.as_slice(), s.values.as_slice()), ([0.0, 0.5].as_slice(), [290.0, 289.5].as_slice()));
+        assert_eq!(data.len(), 3);
     }
 
     #[test]
