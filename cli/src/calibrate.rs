@@ -10,7 +10,6 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::io::{IsTerminal, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -410,7 +409,7 @@ async fn work(
         let _ = stopped.await;
     }));
     let clock = Instant::now();
-    let mut bar = Bar::new(std::io::stderr().is_terminal());
+    let bar = CalibrationProgress::new();
     let done_before = start.evaluations.max(0) as usize;
     let mut c = start;
     let outcome = loop {
@@ -791,29 +790,25 @@ pub(crate) fn fmt_sig(v: f64) -> String {
     if a != 0.0 && !(1e-3..1e5).contains(&a) { format!("{v:.3e}") } else { format!("{}", (v * 1e4).round() / 1e4) }
 }
 
-/// A one-line progress bar: stage, evaluations, best cost, ETA.
-struct Bar {
-    enabled: bool,
-    last: Option<Instant>,
-    drawn: usize,
+/// The progress of a calibration on stderr: stage, evaluations, best cost and ETA, redrawn at
+/// most five times a second; nothing when stderr is not a terminal.
+struct CalibrationProgress {
+    bar: indicatif::ProgressBar,
 }
 
-impl Bar {
-    fn new(enabled: bool) -> Self {
-        Self { enabled, last: None, drawn: 0 }
+impl CalibrationProgress {
+    const TEMPLATE: &str = "{prefix}  [{bar:20}] evaluations {pos}/{len} {msg}";
+
+    fn new() -> Self {
+        Self { bar: crate::progress::bar(1, Self::TEMPLATE, 5) }
     }
 
-    /// Draws the progress of `c`; `done_before` evaluations were done before this run (`elapsed`
+    /// Shows the progress of `c`; `done_before` evaluations were done before this run (`elapsed`
     /// ago) started, and do not count for the ETA.
-    fn update(&mut self, c: &api::Calibration, done_before: usize, elapsed: Duration) {
-        if !self.enabled {
+    fn update(&self, c: &api::Calibration, done_before: usize, elapsed: Duration) {
+        if self.bar.is_hidden() {
             return;
         }
-        let now = Instant::now();
-        if self.last.is_some_and(|l| now.duration_since(l) < Duration::from_millis(200)) {
-            return;
-        }
-        self.last = Some(now);
         let (n, failed) = (c.evaluations.max(0) as usize, c.failed_evaluations.max(0) as usize);
         let budget = (c.budget.max(0) as usize).max(1);
         let stages: Vec<&str> = c.spec["stages"]
@@ -830,25 +825,14 @@ impl Bar {
             "…".into()
         };
         let best = c.best_cost.map_or_else(|| "—".into(), fmt_sig);
-        let line = format!(
-            "stage {}/{} {algorithm}  evaluations {n}/{budget} ({failed} failed)  best cost {best}  ETA ≤ {eta}",
-            stage + 1,
-            stages.len()
-        );
-        let pad = self.drawn.saturating_sub(line.chars().count());
-        self.drawn = line.chars().count();
-        let mut err = std::io::stderr().lock();
-        let _ = write!(err, "\r{line}{}", " ".repeat(pad));
-        let _ = err.flush();
+        self.bar.set_length(budget as u64);
+        self.bar.set_position(n as u64);
+        self.bar.set_prefix(format!("stage {}/{} {algorithm}", stage + 1, stages.len()));
+        self.bar.set_message(format!("({failed} failed)  best cost {best}  ETA ≤ {eta}"));
     }
 
-    fn clear(&mut self) {
-        if self.drawn > 0 {
-            let mut err = std::io::stderr().lock();
-            let _ = write!(err, "\r{}\r", " ".repeat(self.drawn));
-            let _ = err.flush();
-            self.drawn = 0;
-        }
+    fn clear(&self) {
+        self.bar.finish_and_clear();
     }
 }
 
@@ -894,6 +878,11 @@ mod tests {
         assert!(caveat.contains("not positive definite (1 of 1 directions regularised)"), "{caveat}");
         assert_eq!(caveat_of(&[gaussian(true)]), None);
         assert_eq!(caveat_of(&[variance_stage(&[], true)]), None);
+    }
+
+    #[test]
+    fn the_progress_template_parses() {
+        assert!(indicatif::ProgressStyle::with_template(CalibrationProgress::TEMPLATE).is_ok());
     }
 
     #[test]

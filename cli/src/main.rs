@@ -8,6 +8,7 @@ mod fluid_source;
 mod healthcheck;
 mod params_cmd;
 mod predict;
+mod progress;
 mod props;
 mod report;
 mod serve;

@@ -2,7 +2,6 @@
 //! [--noise QUANTITY=SIGMA]... [--seed N]`.
 
 use std::collections::BTreeMap;
-use std::io::{IsTerminal, Write as _};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -99,7 +98,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         None => None,
     };
 
-    let mut bar = ProgressBar::new(std::io::stderr().is_terminal());
+    let mut bar = RunProgress::new();
     let result = driver::run(&case, &table, &params, &mut |p| bar.update(p));
     bar.clear();
     let mut output = result.with_context(|| format!("{case_path}: simulation failed"))?;
@@ -378,56 +377,46 @@ fn print_summary(
     println!("  wrote probes.csv, profiles.csv, summary.json to {}", out_dir.display());
 }
 
-/// A one-line progress bar on stderr, redrawn at most ten times a second; silent when stderr is
-/// not a terminal.
+/// The progress of a run on stderr: a bar of the simulated time with the time and the steps,
+/// redrawn at most ten times a second; nothing when stderr is not a terminal.
 #[derive(Debug)]
-struct ProgressBar {
-    enabled: bool,
+struct RunProgress {
+    bar: indicatif::ProgressBar,
     last: Option<Instant>,
-    drawn: usize,
 }
 
-impl ProgressBar {
-    const WIDTH: usize = 30;
+impl RunProgress {
+    /// Resolution of the bar: the simulated fraction in thousandths.
+    const STEPS: u64 = 1000;
+    const TEMPLATE: &str = "[{bar:30}] {msg}";
 
-    fn new(enabled: bool) -> Self {
-        Self { enabled, last: None, drawn: 0 }
+    fn new() -> Self {
+        Self { bar: crate::progress::bar(Self::STEPS, Self::TEMPLATE, 10), last: None }
     }
 
     fn update(&mut self, p: Progress) {
-        if !self.enabled {
+        if self.bar.is_hidden() {
             return;
         }
+        // the driver reports every step: format at most ten times a second
         let now = Instant::now();
         if self.last.is_some_and(|l| now.duration_since(l) < Duration::from_millis(100)) {
             return;
         }
         self.last = Some(now);
         let frac = if p.end_s > 0.0 { (p.time_s / p.end_s).clamp(0.0, 1.0) } else { 1.0 };
-        let filled = ((frac * Self::WIDTH as f64).round() as usize).min(Self::WIDTH);
-        let line = format!(
-            "[{}{}] {:5.1}%  t = {:.4} of {} s, {} steps",
-            "#".repeat(filled),
-            "-".repeat(Self::WIDTH - filled),
+        self.bar.set_position((frac * Self::STEPS as f64).round() as u64);
+        self.bar.set_message(format!(
+            "{:5.1}%  t = {:.4} of {} s, {} steps",
             frac * 100.0,
             p.time_s,
             fmt_num(p.end_s),
             p.steps
-        );
-        let pad = self.drawn.saturating_sub(line.chars().count());
-        self.drawn = line.chars().count();
-        let mut err = std::io::stderr().lock();
-        let _ = write!(err, "\r{line}{}", " ".repeat(pad));
-        let _ = err.flush();
+        ));
     }
 
-    fn clear(&mut self) {
-        if self.drawn > 0 {
-            let mut err = std::io::stderr().lock();
-            let _ = write!(err, "\r{}\r", " ".repeat(self.drawn));
-            let _ = err.flush();
-            self.drawn = 0;
-        }
+    fn clear(&self) {
+        self.bar.finish_and_clear();
     }
 }
 
@@ -462,6 +451,11 @@ mod tests {
         let s = &data.series[&(name.to_string(), "wall_temperature_k".to_string())];
         assert_eq!((s.times.as_slice(), s.values.as_slice()), ([0.0, 0.5].as_slice(), [290.0, 289.5].as_slice()));
         assert_eq!(data.len(), 3);
+    }
+
+    #[test]
+    fn the_progress_template_parses() {
+        assert!(indicatif::ProgressStyle::with_template(RunProgress::TEMPLATE).is_ok());
     }
 
     #[test]
