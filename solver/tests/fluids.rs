@@ -334,15 +334,11 @@ fn nitrogen_matches_reference_points() {
     }
 }
 
-/// Deterministic xorshift sequence in [0, 1).
+/// A seeded uniform sequence in [0, 1): the same states on every run.
 fn rng(seed: u64) -> impl FnMut() -> f64 {
-    let mut s = seed;
-    move || {
-        s ^= s << 13;
-        s ^= s >> 7;
-        s ^= s << 17;
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    }
+    use rand::{Rng, SeedableRng};
+    let mut r = rand::rngs::StdRng::seed_from_u64(seed);
+    move || r.r#gen::<f64>()
 }
 
 /// Random states inside `phase`'s coverage.
