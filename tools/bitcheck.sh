@@ -54,7 +54,7 @@ compared_files() {
         printf '%s\n' "$c/probes.csv" "$c/profiles.csv" "$c/summary.json"
     done
     (cd "$dir" && ls calibrate-quick/result.json calibrate-quick/best.toml calibrate-quick/evaluations.csv \
-        calibrate-quick/posterior.csv calibrate-quick/fit-*.csv 2>/dev/null)
+        calibrate-quick/posterior.csv calibrate-quick/fit-*.csv 2>/dev/null || true)
 }
 
 compare() {
