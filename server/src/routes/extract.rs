@@ -30,16 +30,7 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
         {
             return Err(too_large(format!("the body ({len} bytes) exceeds the limit of {limit} bytes")));
         }
-        let bytes = axum::body::to_bytes(req.into_body(), limit).await.map_err(|e| {
-            let mut src: Option<&(dyn std::error::Error + 'static)> = Some(&e);
-            while let Some(s) = src {
-                if s.is::<http_body_util::LengthLimitError>() {
-                    return too_large(format!("the body exceeds the limit of {limit} bytes"));
-                }
-                src = s.source();
-            }
-            ApiError::bad_request(format!("cannot read the body: {e}"))
-        })?;
+        let bytes = read_limited(req.into_body(), limit).await?;
         let mut de = serde_json::Deserializer::from_slice(&bytes);
         let value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
             let path = e.path().to_string();
@@ -57,6 +48,41 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
         de.end().map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, "invalid_json", format!("malformed JSON: {e}")))?;
         Ok(Self(value))
     }
+}
+
+/// How much of a body past the limit is read and dropped before the 413 goes out, bytes.
+const DRAIN_BYTES: usize = 4 << 20;
+/// How long that reading may take.
+const DRAIN_TIME: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Reads a body of up to `limit` bytes. A longer body (one without a length, whose excess shows
+/// only while it is read) is refused with a 413; the server first reads and drops up to
+/// `DRAIN_BYTES` more of it (for at most `DRAIN_TIME`), so that a client still sending a
+/// moderately oversized body receives the 413 instead of a connection closed under it.
+async fn read_limited(body: axum::body::Body, limit: usize) -> Result<Vec<u8>, ApiError> {
+    use http_body_util::BodyExt as _;
+    let mut body = body;
+    let mut out = Vec::new();
+    while let Some(frame) = body.frame().await {
+        let frame = frame.map_err(|e| ApiError::bad_request(format!("cannot read the body: {e}")))?;
+        let Ok(data) = frame.into_data() else { continue };
+        if out.len() + data.len() <= limit {
+            out.extend_from_slice(&data);
+            continue;
+        }
+        let drain = async {
+            let mut drained = data.len();
+            while drained < DRAIN_BYTES {
+                match body.frame().await {
+                    Some(Ok(f)) => drained += f.data_ref().map_or(0, |d| d.len()),
+                    _ => break,
+                }
+            }
+        };
+        let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
+        return Err(too_large(format!("the body exceeds the limit of {limit} bytes")));
+    }
+    Ok(out)
 }
 
 /// Query parameters with JSON errors.
