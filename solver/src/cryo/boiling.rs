@@ -23,17 +23,21 @@ const GRIFFITH_A: [f64; 3] = [0.0144, 1.0e-6, 0.5e-3];
 /// Spiegler's thermodynamic limit of liquid contact, T/T_cr = 27/32: the leading factor of the
 /// Darr–Hartwig rewet temperature.
 const DARR_HARTWIG_TCR_FACTOR: f64 = 27.0 / 32.0;
-/// Boiling-curve branch in [`WallHeat::regime_code`](super::WallHeat::regime_code): single-phase
-/// convection to the liquid.
-pub const REGIME_CONVECTION: u8 = 0;
-/// Nucleate boiling (T_onb < T_w ≤ T_chf).
-pub const REGIME_NUCLEATE: u8 = 1;
-/// Transition boiling (T_chf < T_w ≤ T_mfb).
-pub const REGIME_TRANSITION: u8 = 2;
-/// Film boiling (T_w > T_mfb).
-pub const REGIME_FILM: u8 = 3;
-/// Dry wall: no liquid-covered perimeter (wetted fraction below 10⁻³); heat goes to the gas.
-pub const REGIME_DRY: u8 = 4;
+/// Heat-transfer regime of the wall ([`WallHeat::regime`](super::WallHeat::regime)): the branch
+/// of the boiling curve, or a dry wall.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum WallRegime {
+    /// Single-phase convection to the liquid (T_w ≤ T_onb).
+    Convection,
+    /// Nucleate boiling (T_onb < T_w ≤ T_chf).
+    Nucleate,
+    /// Transition boiling (T_chf < T_w ≤ T_mfb).
+    Transition,
+    /// Film boiling (T_w > T_mfb).
+    Film,
+    /// Dry wall: no liquid-covered perimeter (wetted fraction below 10⁻³); heat goes to the gas.
+    Dry,
+}
 
 impl Local {
     /// The same state with the boiling correlations' property bases read from `fluid`:
@@ -354,20 +358,20 @@ impl<'a> BoilingCurve<'a> {
     }
 
     /// Heat flux wall → liquid at wall temperature `t_w`, W/m², and the branch.
-    pub(super) fn at(&self, t_w: f64) -> (f64, u8) {
+    pub(super) fn at(&self, t_w: f64) -> (f64, WallRegime) {
         let (s, a) = (self.s, &self.anchors);
         if t_w <= a.t_onb {
-            (self.liquid.htc(t_w) * (t_w - s.t_l), REGIME_CONVECTION)
+            (self.liquid.htc(t_w) * (t_w - s.t_l), WallRegime::Convection)
         } else if t_w <= a.t_chf {
             // eq:q_nb_int, in the orientation that gives q_onb at T_onb and q_chf at T_chf
             let y = ((t_w - a.t_onb) / (a.t_chf - a.t_onb)).clamp(0.0, 1.0);
-            (a.q_onb + (a.q_chf - a.q_onb) * pow_param(y, self.p.nb_exponent), REGIME_NUCLEATE)
+            (a.q_onb + (a.q_chf - a.q_onb) * pow_param(y, self.p.nb_exponent), WallRegime::Nucleate)
         } else if t_w <= a.t_mfb {
             // eq:transition_boiling as printed (TRACE): f_tb = 1 at T_chf, 0 at T_mfb
             let f = ((t_w - a.t_mfb) / (a.t_chf - a.t_mfb)).clamp(0.0, 1.0).powi(2);
-            (f * a.q_chf + (1.0 - f) * a.q_mfb, REGIME_TRANSITION)
+            (f * a.q_chf + (1.0 - f) * a.q_mfb, WallRegime::Transition)
         } else {
-            (self.film.htc(s, self.p, &s.vap_film, t_w) * (t_w - s.t_sat), REGIME_FILM)
+            (self.film.htc(s, self.p, &s.vap_film, t_w) * (t_w - s.t_sat), WallRegime::Film)
         }
     }
 }

@@ -67,7 +67,7 @@
 //! | `state` | [`Local`], [`Vapour`], the small helpers of the local state (void fraction, mass fluxes, qualities, the stratified half-angle) |
 //! | `parameters` | [`CryoParams`], [`PARAMETER_NAMES`], [`CorrelationSet`], the fluid constants' defaults |
 //! | `convection` | single-phase convection to the wall, Dittus–Boelter, the recovery temperature |
-//! | `boiling` | the boiling curve: its anchors, the film-boiling correlations, the boiling property bases of [`Local`], the branch codes (`REGIME_*`) |
+//! | `boiling` | the boiling curve: its anchors, the film-boiling correlations, the boiling property bases of [`Local`], [`WallRegime`] |
 //! | `regime` | the flow-regime map ([`Regime`], [`flow_regime`]), the dryout boundary, the wetted fraction |
 //! | `wall_heat` | [`WallHeat`], [`wall_heat`], the drop–wall contact of dispersed flow |
 //! | `particles` | drop and bubble diameters and the regularised slip velocity |
@@ -90,9 +90,9 @@ mod state;
 mod wall_heat;
 
 pub use boiling::{
-    Anchors, REGIME_CONVECTION, REGIME_DRY, REGIME_FILM, REGIME_NUCLEATE, REGIME_TRANSITION, berenson_dt_mfb,
-    berenson_with, boiling_anchors, boiling_curve, bromley_htc, critical_heat_flux, darr_hartwig_t_wet,
-    film_boiling_htc, iloeje_dt_mfb, miropolskii_htc, onset_of_nucleate_boiling, theler_t_chf, zuber_chf,
+    Anchors, WallRegime, berenson_dt_mfb, berenson_with, boiling_anchors, boiling_curve, bromley_htc,
+    critical_heat_flux, darr_hartwig_t_wet, film_boiling_htc, iloeje_dt_mfb, miropolskii_htc,
+    onset_of_nucleate_boiling, theler_t_chf, zuber_chf,
 };
 pub use convection::{
     convection_nusselt, gas_convection_htc, liquid_convection_htc, recovery_temperature_rise, scaled_dittus_boelter,

@@ -630,13 +630,13 @@ fn wall_heat_splits_and_boils() {
     assert_eq!(wh.boiling_fraction, 1.0);
     assert!(wh.t_onb < wh.t_chf && wh.t_chf < wh.t_mfb);
     let dry = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &WET);
-    assert_eq!(dry.regime_code, REGIME_DRY);
+    assert_eq!(dry.regime, WallRegime::Dry);
     assert_eq!(dry.h_wl, 0.0);
     // wall colder than saturation: convection, no boiling
     let mut cold = ln2(0.0, 75.0, 0.0, 0.5);
     cold.t_l = 76.0;
     let wh = wall_heat(&cold, &p, CorrelationSet::Paper, 1.0, &WET);
-    assert_eq!(wh.regime_code, REGIME_CONVECTION);
+    assert_eq!(wh.regime, WallRegime::Convection);
     assert_eq!(wh.boiling_fraction, 0.0);
     assert!(rel(wh.h_wl, liquid_convection_htc(&cold, &p, 75.0)) < 1e-12);
     // the boiling fraction rises smoothly from T_s to T_onb
@@ -644,11 +644,11 @@ fn wall_heat_splits_and_boils() {
     let t_onb = onset_of_nucleate_boiling(&s, &p).0;
     let mid = wall_heat(&Local { t_w: 0.5 * (T_SAT + t_onb), ..s }, &p, CorrelationSet::Paper, 1.0, &WET);
     assert!((mid.boiling_fraction - 0.5).abs() < 1e-9);
-    let codes: Vec<u8> = [T_SAT + 1e-3, 0.5 * (t_onb + 101.7), 110.0, 400.0]
+    let codes: Vec<WallRegime> = [T_SAT + 1e-3, 0.5 * (t_onb + 101.7), 110.0, 400.0]
         .iter()
-        .map(|&t| wall_heat(&Local { t_w: t, ..s }, &p, CorrelationSet::Paper, 1.0, &WET).regime_code)
+        .map(|&t| wall_heat(&Local { t_w: t, ..s }, &p, CorrelationSet::Paper, 1.0, &WET).regime)
         .collect();
-    assert_eq!(codes, [REGIME_CONVECTION, REGIME_NUCLEATE, REGIME_TRANSITION, REGIME_FILM]);
+    assert_eq!(codes, [WallRegime::Convection, WallRegime::Nucleate, WallRegime::Transition, WallRegime::Film]);
 }
 
 // ---------------------------------------------------------------- regimes

@@ -2,7 +2,7 @@
 //! curve, and the drop–wall contact of dispersed flow.
 
 use super::TINY;
-use super::boiling::{BoilingCurve, REGIME_CONVECTION, REGIME_DRY};
+use super::boiling::{BoilingCurve, WallRegime};
 use super::convection::gas_convection_htc;
 use super::parameters::{CorrelationSet, CryoParams};
 use super::particles::{particle_diameter, relative_speed};
@@ -31,10 +31,8 @@ pub struct WallHeat {
     pub t_mfb: f64,
     /// Onset of nucleate boiling, K.
     pub t_onb: f64,
-    /// Branch: [`REGIME_CONVECTION`], [`REGIME_NUCLEATE`](super::REGIME_NUCLEATE),
-    /// [`REGIME_TRANSITION`](super::REGIME_TRANSITION), [`REGIME_FILM`](super::REGIME_FILM) or
-    /// [`REGIME_DRY`].
-    pub regime_code: u8,
+    /// Regime: the branch of the boiling curve at `s.t_w`, or [`WallRegime::Dry`].
+    pub regime: WallRegime,
 }
 
 /// Wall heat transfer at `s.t_w` with liquid-covered perimeter fraction `wetted`.
@@ -50,7 +48,7 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, re
     let curve = BoilingCurve::new(s, p, set);
     let a = curve.anchors;
     let (h_liquid, branch) = if s.t_w <= a.t_onb {
-        (curve.liquid.htc(s.t_w), REGIME_CONVECTION)
+        (curve.liquid.htc(s.t_w), WallRegime::Convection)
     } else {
         // T_w > T_onb ≥ T_l + 0.1 K here
         let (q, branch) = curve.at(s.t_w);
@@ -65,7 +63,7 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, re
         t_chf: a.t_chf,
         t_mfb: a.t_mfb,
         t_onb: a.t_onb,
-        regime_code: if w < 1e-3 { REGIME_DRY } else { branch },
+        regime: if w < 1e-3 { WallRegime::Dry } else { branch },
     }
 }
 
