@@ -51,8 +51,8 @@ fn poly2(c: &[f64; 3], x: f64) -> f64 {
 /// and ṁ_wavy (χ ∈ [0.06, 0.7], q = 10 kW/m²; above, dryout and mist take over) for nitrogen
 /// at 1 atm in a 15.9 mm line. G_strat ≥ 1, G_wavy ≥ 1.5 G_strat.
 pub fn stratification_boundaries(p: &CryoParams, chi: f64) -> (f64, f64) {
-    let g_strat = poly2(&p.strat_poly, chi).max(G_BOUNDARY_MIN);
-    let g_wavy = poly2(&p.wavy_poly, chi).max(WAVY_OVER_STRAT_MIN * g_strat);
+    let g_strat = poly2(&p.strat_poly(), chi).max(G_BOUNDARY_MIN);
+    let g_wavy = poly2(&p.wavy_poly(), chi).max(WAVY_OVER_STRAT_MIN * g_strat);
     (g_strat, g_wavy)
 }
 
