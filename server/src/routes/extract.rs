@@ -28,6 +28,7 @@ impl<T: DeserializeOwned> FromRequest<AppState> for JsonBody<T> {
             && let Ok(len) = len.parse::<u64>()
             && len > limit as u64
         {
+            drain(req.into_body(), 0).await;
             return Err(too_large(format!("the body ({len} bytes) exceeds the limit of {limit} bytes")));
         }
         let bytes = read_limited(req.into_body(), limit).await?;
@@ -55,13 +56,10 @@ const DRAIN_BYTES: usize = 4 << 20;
 /// How long that reading may take.
 const DRAIN_TIME: std::time::Duration = std::time::Duration::from_secs(2);
 
-/// Reads a body of up to `limit` bytes. A longer body (one without a length, whose excess shows
-/// only while it is read) is refused with a 413; the server first reads and drops up to
-/// `DRAIN_BYTES` more of it (for at most `DRAIN_TIME`), so that a client still sending a
-/// moderately oversized body receives the 413 instead of a connection closed under it.
-async fn read_limited(body: axum::body::Body, limit: usize) -> Result<Vec<u8>, ApiError> {
+/// Reads a body of up to `limit` bytes, refusing a longer one with a 413 (one without a
+/// length, whose excess shows only while it is read).
+async fn read_limited(mut body: axum::body::Body, limit: usize) -> Result<Vec<u8>, ApiError> {
     use http_body_util::BodyExt as _;
-    let mut body = body;
     let mut out = Vec::new();
     while let Some(frame) = body.frame().await {
         let frame = frame.map_err(|e| ApiError::bad_request(format!("cannot read the body: {e}")))?;
@@ -70,19 +68,27 @@ async fn read_limited(body: axum::body::Body, limit: usize) -> Result<Vec<u8>, A
             out.extend_from_slice(&data);
             continue;
         }
-        let drain = async {
-            let mut drained = data.len();
-            while drained < DRAIN_BYTES {
-                match body.frame().await {
-                    Some(Ok(f)) => drained += f.data_ref().map_or(0, |d| d.len()),
-                    _ => break,
-                }
-            }
-        };
-        let _ = tokio::time::timeout(DRAIN_TIME, drain).await;
+        drain(body, data.len()).await;
         return Err(too_large(format!("the body exceeds the limit of {limit} bytes")));
     }
     Ok(out)
+}
+
+/// Before a 413 goes out, reads and drops up to `DRAIN_BYTES` (counting `already` read) more
+/// of a refused body, for at most `DRAIN_TIME`, so that a client still sending a moderately
+/// oversized body receives the 413 instead of a connection closed under it.
+async fn drain(mut body: axum::body::Body, already: usize) {
+    use http_body_util::BodyExt as _;
+    let read = async {
+        let mut drained = already;
+        while drained < DRAIN_BYTES {
+            match body.frame().await {
+                Some(Ok(f)) => drained += f.data_ref().map_or(0, |d| d.len()),
+                _ => break,
+            }
+        }
+    };
+    let _ = tokio::time::timeout(DRAIN_TIME, read).await;
 }
 
 /// Query parameters with JSON errors.

@@ -140,6 +140,13 @@ impl PhaseTable {
         Some(row.start as usize + (j - first))
     }
 
+    /// Offset (in nodes) of node `(i, j)` if it is in row `i`.
+    fn node_offset(&self, i: usize, j: usize) -> Option<usize> {
+        let row = self.rows.get(i)?;
+        let (first, end) = (row.first as usize, row.end as usize);
+        (j >= first && j < end).then(|| row.start as usize + (j - first))
+    }
+
     /// First and last temperature node of the cells usable between pressure rows `i` and `i + 1`.
     fn cell_range(&self, i: usize) -> Option<(usize, usize)> {
         let (a, b) = (self.rows.get(i)?, self.rows.get(i + 1)?);

@@ -81,12 +81,6 @@ pub struct StabilityViolation {
     pub value: f64,
 }
 
-/// Node offset of `(i, j)` in a phase table, if the node exists.
-fn node(tab: &PhaseTable, i: usize, j: usize) -> Option<usize> {
-    let row = tab.rows.get(i)?;
-    (j >= row.first as usize && j < row.end as usize).then(|| row.start as usize + j - row.first as usize)
-}
-
 fn clamp_slope(m: &mut f64, lo: f64, hi: f64, count: &mut usize) {
     let c = m.clamp(lo, hi);
     if c != *m {
@@ -151,7 +145,7 @@ fn limit_lines(tab: &mut PhaseTable, p_axis: &Axis, t_axis: &Axis) -> usize {
     for j in 0..t_axis.len() {
         let mut run = Vec::new();
         for i in 0..tab.rows.len() {
-            match node(tab, i, j) {
+            match tab.node_offset(i, j) {
                 Some(o) => run.push((o, p_axis.node(i))),
                 None if !run.is_empty() => cols.push(std::mem::take(&mut run)),
                 None => {}
@@ -161,14 +155,8 @@ fn limit_lines(tab: &mut PhaseTable, p_axis: &Axis, t_axis: &Axis) -> usize {
             cols.push(run);
         }
     }
-    let rows: Vec<Vec<(usize, f64)>> = tab
-        .rows
-        .iter()
-        .map(|r| {
-            (r.first as usize..r.end as usize)
-                .map(|j| (r.start as usize + j - r.first as usize, t_axis.node(j)))
-                .collect()
-        })
+    let rows: Vec<Vec<(usize, f64)>> = (0..tab.rows.len())
+        .map(|i| (0..t_axis.len()).filter_map(|j| Some((tab.node_offset(i, j)?, t_axis.node(j)))).collect())
         .collect();
     let data = &mut tab.data;
     let mut n = 0;
@@ -253,7 +241,7 @@ impl FluidTable {
                     let comps: &[usize] = if round < 10 { &[D_PT] } else { &[D_T, D_PT] };
                     changed.insert((i, j));
                     for (a, b) in [(i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1)] {
-                        if let Some(o) = node(tab, a, b)
+                        if let Some(o) = tab.node_offset(a, b)
                             && halved.insert((o, lane))
                         {
                             for &c in comps {
@@ -286,8 +274,8 @@ impl FluidTable {
         let tab = &self.phases[phase.index()];
         let mut out = Vec::new();
         let mut visit = |i: usize, j: usize| {
-            let (Some(a), Some(b)) = (node(tab, i, j), node(tab, i + 1, j)) else { return };
-            if node(tab, i, j + 1).is_none() || node(tab, i + 1, j + 1).is_none() {
+            let (Some(a), Some(b)) = (tab.node_offset(i, j), tab.node_offset(i + 1, j)) else { return };
+            if tab.node_offset(i, j + 1).is_none() || tab.node_offset(i + 1, j + 1).is_none() {
                 return;
             }
             let hp = self.p_axis.node(i + 1) - self.p_axis.node(i);
