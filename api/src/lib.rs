@@ -157,7 +157,8 @@ pub struct CreateCalibration {
     pub seed: u64,
     /// Ids of stored experiments to fit (at least one, each once).
     pub experiments: Vec<i64>,
-    /// Free parameters with optional bounds and scale (registry names).
+    /// Free parameters with optional bounds and scale: registry names, or case fields
+    /// (`case.<path>`, bounds required; `experiments`: names of experiments that each get a copy).
     #[schema(value_type = Vec<Object>)]
     pub parameters: Vec<ParameterSpec>,
     /// Other parameters held at given values.

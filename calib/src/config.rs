@@ -11,6 +11,11 @@
 //! lower = 0.3
 //! upper = 3.0
 //! scale = "log"              # or "linear" (default)
+//! [[parameters]]             # a case field (apparatus parameter): bounds required
+//! name = "case.inlet.loss_coefficient"
+//! lower = 2.0
+//! upper = 30.0
+//! experiments = ["subcooled-4.2atm"]   # optional: one copy per experiment listed
 //! [fixed]                    # other parameters held at given values (default: registry)
 //! tauw = 2.0
 //! [weights]                  # per quantity: η and σ
@@ -23,11 +28,24 @@
 //! Parsing checks everything that can be checked without reading other files: unknown fields,
 //! parameter names (with the closest registry name suggested), bounds inside the registry's,
 //! stage options that apply to the stage's algorithm. Errors name the file and the field.
+//!
+//! A parameter named `case.<path>` is a numeric field of the experiments' cases (an apparatus
+//! parameter, see [`crate::apparatus`]): it has no registry box, so `lower` and `upper` are
+//! required. Without `experiments` it is one value shared by every experiment; with
+//! `experiments = [...]` (each entry an experiment's name, or its `case` as written in the file)
+//! each listed experiment gets its own copy, named `case.<path>@<experiment name>` in results,
+//! and the experiments not listed keep their case's value. Whether the field exists and accepts
+//! the bounds is checked against each case it applies to
+//! ([`CalibrationSpec::check_case_fields`]) once the cases are read. A case field cannot be
+//! `[fixed]`: its fixed value is the one in the case file.
 
 use std::collections::BTreeMap;
 
+use cryofit_solver::case::{Case, FieldError};
 use cryofit_solver::params;
 use serde::{Deserialize, Serialize};
+
+use crate::apparatus;
 
 use crate::cost::Weight;
 use crate::space::{FreeParameter, Scale, Space};
@@ -45,17 +63,38 @@ pub struct ExperimentRef {
     pub name: Option<String>,
 }
 
+impl ExperimentRef {
+    /// The experiment's name: `name`, or else the stem of the case file's name (`experiment-<k>`
+    /// for a case path without one); `k` is its index in the file.
+    pub fn label(&self, k: usize) -> String {
+        self.name.clone().unwrap_or_else(|| {
+            std::path::Path::new(&self.case)
+                .file_stem()
+                .map_or_else(|| format!("experiment-{k}"), |s| s.to_string_lossy().into_owned())
+        })
+    }
+}
+
 /// One free parameter as written in the file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParameterSpec {
+    /// A registry name, or a case field `case.<path>`.
     pub name: String,
+    /// Lower bound (default: the registry's; required for a case field).
     #[serde(default)]
     pub lower: Option<f64>,
+    /// Upper bound (default: the registry's; required for a case field).
     #[serde(default)]
     pub upper: Option<f64>,
+    /// How the parameter maps to its unit coordinate (default linear).
     #[serde(default)]
     pub scale: Option<ScaleName>,
+    /// Case fields only: one independent copy per listed experiment (its name, or its `case` as
+    /// written in the file), named `case.<path>@<experiment name>`; absent: one value shared by
+    /// every experiment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub experiments: Option<Vec<String>>,
 }
 
 /// `scale = "linear" | "log"`.
@@ -356,6 +395,15 @@ impl CalibrationSpec {
         self.space()?;
         for (name, &value) in &self.fixed {
             let field = format!("fixed.{name}");
+            if apparatus::is_case_name(name) {
+                return Err(SpecError::CaseParameter {
+                    field,
+                    value: name.clone(),
+                    need: "a case field keeps the value in its case file: set it there, or make it a free parameter \
+                           with bounds"
+                        .into(),
+                });
+            }
             let spec = registry_spec(&field, name)?;
             if !(value.is_finite() && value >= spec.lower && value <= spec.upper) {
                 return Err(SpecError::OutsideRegistry { field, value, lower: spec.lower, upper: spec.upper });
@@ -389,33 +437,195 @@ impl CalibrationSpec {
         Ok(())
     }
 
-    /// The free-parameter space: bounds default to the registry's and must lie within them.
+    /// The free-parameter space, in file order (a per-experiment case field gives one parameter
+    /// per listed experiment, in the list's order). Registry bounds default to the registry's and
+    /// must lie within them; a case field's are required.
     pub fn space(&self) -> Result<Space, SpecError> {
         let mut free = Vec::new();
         for (k, p) in self.parameters.iter().enumerate() {
-            let spec = registry_spec(&format!("parameters[{k}].name"), &p.name)?;
-            let lower = p.lower.unwrap_or(spec.lower);
-            let upper = p.upper.unwrap_or(spec.upper);
-            let bounds = |registry: Option<(f64, f64)>| SpecError::Bounds {
-                field: format!("parameters[{k}]"),
-                name: p.name.clone(),
-                lower,
-                upper,
-                registry,
-            };
-            if !(lower.is_finite() && upper.is_finite() && lower < upper) {
-                return Err(bounds(None));
-            }
-            if lower < spec.lower || upper > spec.upper {
-                return Err(bounds(Some((spec.lower, spec.upper))));
-            }
+            let (lower, upper) = self.bounds(k, p)?;
             let scale = match p.scale.unwrap_or(ScaleName::Linear) {
                 ScaleName::Linear => Scale::Linear,
                 ScaleName::Log => Scale::Log,
             };
-            free.push(FreeParameter { name: p.name.clone(), lower, upper, scale });
+            match self.copies(k)? {
+                None => free.push(FreeParameter { name: p.name.clone(), lower, upper, scale }),
+                Some(experiments) => free.extend(experiments.into_iter().map(|e| FreeParameter {
+                    name: apparatus::copy_name(&p.name, &self.experiments[e].label(e)),
+                    lower,
+                    upper,
+                    scale,
+                })),
+            }
         }
+        self.check_case_field_overlap()?;
         Ok(Space::new(free)?)
+    }
+
+    /// The bounds of `parameters[k]` (`p`): checked against the registry's, or required for a
+    /// case field.
+    fn bounds(&self, k: usize, p: &ParameterSpec) -> Result<(f64, f64), SpecError> {
+        let field = format!("parameters[{k}]");
+        let registry = if apparatus::is_case_name(&p.name) {
+            check_case_name(&format!("{field}.name"), &p.name)?;
+            if p.lower.is_none() || p.upper.is_none() {
+                return Err(SpecError::CaseParameter {
+                    field,
+                    value: p.name.clone(),
+                    need: "a case field has no registry bounds: give both `lower` and `upper`".into(),
+                });
+            }
+            None
+        } else {
+            Some(registry_spec(&format!("{field}.name"), &p.name)?)
+        };
+        let lower = p.lower.or(registry.map(|s| s.lower)).unwrap_or(f64::NAN);
+        let upper = p.upper.or(registry.map(|s| s.upper)).unwrap_or(f64::NAN);
+        let bounds = |registry: Option<(f64, f64)>| SpecError::Bounds {
+            field: field.clone(),
+            name: p.name.clone(),
+            lower,
+            upper,
+            registry,
+        };
+        if !(lower.is_finite() && upper.is_finite() && lower < upper) {
+            return Err(bounds(None));
+        }
+        if let Some(spec) = registry
+            && (lower < spec.lower || upper > spec.upper)
+        {
+            return Err(bounds(Some((spec.lower, spec.upper))));
+        }
+        Ok((lower, upper))
+    }
+
+    /// The experiments (indices) that get a copy of `parameters[k]`, in the list's order; `None`
+    /// for a parameter shared by all.
+    fn copies(&self, k: usize) -> Result<Option<Vec<usize>>, SpecError> {
+        let p = &self.parameters[k];
+        let Some(list) = &p.experiments else { return Ok(None) };
+        let field = format!("parameters[{k}].experiments");
+        let refuse = |field: String, value: &str, need: String| SpecError::CaseParameter {
+            field,
+            value: value.to_string(),
+            need,
+        };
+        if !apparatus::is_case_name(&p.name) {
+            let need = "a registry parameter is one value for every experiment; `experiments` applies to case \
+                        fields (`case.<path>`) only";
+            return Err(refuse(field, &p.name, need.into()));
+        }
+        if list.is_empty() {
+            let need = "lists no experiment: name at least one, or leave `experiments` out for one value shared \
+                        by all";
+            return Err(refuse(field, &p.name, need.into()));
+        }
+        let mut picked = Vec::new();
+        for (j, entry) in list.iter().enumerate() {
+            let e = self.experiment_named(&format!("{field}[{j}]"), entry)?;
+            if picked.contains(&e) {
+                let need = format!("names experiment `{}` a second time", self.experiments[e].label(e));
+                return Err(refuse(format!("{field}[{j}]"), entry, need));
+            }
+            picked.push(e);
+        }
+        Ok(Some(picked))
+    }
+
+    /// The experiment an `experiments` entry names: by its name first, else by its `case` as
+    /// written in the file.
+    fn experiment_named(&self, field: &str, entry: &str) -> Result<usize, SpecError> {
+        let labels: Vec<String> = self.experiments.iter().enumerate().map(|(k, e)| e.label(k)).collect();
+        let by_name: Vec<usize> = (0..labels.len()).filter(|&k| labels[k] == entry).collect();
+        let by_case: Vec<usize> = (0..labels.len()).filter(|&k| self.experiments[k].case == entry).collect();
+        let refuse = |need: String| SpecError::CaseParameter { field: field.to_string(), value: entry.into(), need };
+        match (by_name.as_slice(), by_case.as_slice()) {
+            ([k], _) | ([], [k]) => Ok(*k),
+            ([a, b, ..], _) => Err(refuse(format!(
+                "experiments[{a}] and experiments[{b}] are both named `{entry}`; give each experiment its own `name`"
+            ))),
+            ([], [a, b, ..]) => Err(refuse(format!(
+                "experiments[{a}] and experiments[{b}] share this case file; name the experiment by its `name`"
+            ))),
+            ([], []) => Err(refuse(format!(
+                "not an experiment of this calibration (its experiments: {}); give an experiment's name or its case \
+                 file",
+                labels.join(", ")
+            ))),
+        }
+    }
+
+    /// Refuses a case field that is free both for every experiment and for some experiments.
+    fn check_case_field_overlap(&self) -> Result<(), SpecError> {
+        for (k, p) in self.parameters.iter().enumerate() {
+            let shared = |q: &ParameterSpec| q.name == p.name && q.experiments.is_none();
+            if let Some(j) = self.parameters.iter().position(shared)
+                && j != k
+                && apparatus::is_case_name(&p.name)
+            {
+                return Err(SpecError::CaseParameter {
+                    field: format!("parameters[{k}]"),
+                    value: p.name.clone(),
+                    need: format!(
+                        "is already free for every experiment in parameters[{j}]; list a case field once, shared \
+                         or per experiment"
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Number of free parameters (each per-experiment copy counted), without checking them.
+    pub fn dimension(&self) -> usize {
+        self.parameters.iter().map(|p| p.experiments.as_ref().map_or(1, |e| e.len().max(1))).sum()
+    }
+
+    /// The calibration with every `experiments` entry of a parameter given as the experiment's
+    /// name (an entry that names a case file replaced), as a coordinator needs it: it knows
+    /// experiments by name only. Entries that name no experiment are left for
+    /// [`CalibrationSpec::validate`] to refuse.
+    pub fn with_experiment_names(&self) -> CalibrationSpec {
+        let mut spec = self.clone();
+        for p in &mut spec.parameters {
+            for entry in p.experiments.iter_mut().flatten() {
+                if let Ok(k) = self.experiment_named("", entry) {
+                    *entry = self.experiments[k].label(k);
+                }
+            }
+        }
+        spec
+    }
+
+    /// Checks every case field free in experiment `experiment` (its name) against its `case`
+    /// (`case_label` names the file): the field exists, holds a number, and the case accepts both
+    /// bounds. Errors name the parameter, the experiment, the case, the bound and the field.
+    pub fn check_case_fields(&self, experiment: &str, case: &Case, case_label: &str) -> Result<(), SpecError> {
+        for (k, p) in self.parameters.iter().enumerate() {
+            let Some(name) = apparatus::case_name(&p.name) else { continue };
+            let applies = match self.copies(k)? {
+                None => true,
+                Some(list) => list.iter().any(|&e| self.experiments[e].label(e) == experiment),
+            };
+            if !applies {
+                continue;
+            }
+            let (lower, upper) = self.bounds(k, p)?;
+            for (bound, value) in [("lower", lower), ("upper", upper)] {
+                if let Err(error) = case.with_fields(&[(name.path, value)]) {
+                    let bound = matches!(error, FieldError::Invalid { .. }).then_some(bound);
+                    return Err(SpecError::CaseField {
+                        field: format!("parameters[{k}]"),
+                        name: p.name.clone(),
+                        experiment: experiment.to_string(),
+                        case_label: case_label.to_string(),
+                        bound,
+                        error: Box::new(error),
+                    });
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The weights as the cost uses them.
@@ -430,6 +640,28 @@ impl CalibrationSpec {
     pub fn budget(&self) -> usize {
         self.stages.iter().fold(0usize, |t, s| t.saturating_add(s.budget))
     }
+}
+
+/// Checks the form of a case field's name given at `field`: `case.<path>`, the path not through
+/// the case's `[parameters]` and without the `@` of a per-experiment copy's name.
+fn check_case_name(field: &str, name: &str) -> Result<(), SpecError> {
+    let refuse = |need: &str| SpecError::CaseParameter { field: field.into(), value: name.into(), need: need.into() };
+    let path = name.strip_prefix(apparatus::CASE_PREFIX).unwrap_or(name);
+    if path.contains(apparatus::EXPERIMENT_MARK) {
+        return Err(refuse(
+            "`@` marks the per-experiment copies a calibration names itself: give the field's name and list the \
+             experiments in `experiments = [...]`",
+        ));
+    }
+    if path.split('.').any(|s| s.trim().is_empty() || s.trim() != s) {
+        return Err(refuse("not a case field: give `case.` and the field's TOML path (case.inlet.loss_coefficient)"));
+    }
+    if let Some(registry) = path.strip_prefix("parameters.") {
+        return Err(refuse(&format!(
+            "the case's [parameters] are registry parameters: name the parameter `{registry}` itself"
+        )));
+    }
+    Ok(())
 }
 
 /// The registry entry of parameter `name`, given at `field`.
@@ -526,6 +758,36 @@ pub enum SpecError {
         /// The registry's bounds, when the given ones leave them.
         registry: Option<(f64, f64)>,
     },
+    /// A case-field parameter (or its `experiments`) that cannot be used as written.
+    #[error("{field} (`{value}`): {need}")]
+    CaseParameter {
+        /// The field path (`parameters[k]`, `parameters[k].experiments[j]`, `fixed.<name>`).
+        field: String,
+        /// The name or entry given.
+        value: String,
+        /// What is wrong and what to do, in words.
+        need: String,
+    },
+    /// A free case field that an experiment's case does not have, or whose bounds it refuses.
+    #[error(
+        "{field} ({name}), experiment `{experiment}` ({case_label}){}: {error}{}",
+        bound.map(|b| format!(", at the {b} bound")).unwrap_or_default(),
+        if bound.is_some() { "; keep the bounds within the values the case accepts" } else { "" }
+    )]
+    CaseField {
+        /// The field path (`parameters[k]`).
+        field: String,
+        /// The parameter.
+        name: String,
+        /// The experiment.
+        experiment: String,
+        /// Names its case.
+        case_label: String,
+        /// The bound the case refuses (`None`: the field itself is not usable).
+        bound: Option<&'static str>,
+        /// Why (boxed: the other errors are small).
+        error: Box<FieldError>,
+    },
     /// A weight for a quantity that no time series holds.
     #[error("{field}: unknown quantity (known: {})", crate::data::QUANTITIES.join(", "))]
     UnknownQuantity {
@@ -554,6 +816,8 @@ impl SpecError {
             | Self::UnknownParameter { field, .. }
             | Self::OutsideRegistry { field, .. }
             | Self::Bounds { field, .. }
+            | Self::CaseParameter { field, .. }
+            | Self::CaseField { field, .. }
             | Self::UnknownQuantity { field } => field.clone(),
             Self::Weight(e) => e.field(),
             Self::Space(_) => "parameters".into(),
@@ -640,6 +904,140 @@ population = 8
         )
         .unwrap();
         assert_eq!(c.stages[0].stall_generations, Some(20));
+    }
+
+    const APPARATUS: &str = r#"
+name = "apparatus"
+[[experiments]]
+case = "runs/a.toml"
+data = "a.csv"
+[[experiments]]
+case = "runs/b.toml"
+data = "b.csv"
+name = "run-b"
+[[parameters]]
+name = "case.inlet.loss_coefficient"
+lower = 2.0
+upper = 20.0
+scale = "log"
+experiments = ["a", "runs/b.toml"]
+[[parameters]]
+name = "case.inlet.valve_opening_time_s"
+lower = 0.5
+upper = 4.0
+[[parameters]]
+name = "Gwsc"
+[[stages]]
+algorithm = "cmaes"
+budget = 50
+"#;
+
+    #[test]
+    fn case_fields_are_free_parameters_shared_or_copied_per_experiment() {
+        let c = CalibrationSpec::from_toml(APPARATUS, "c.toml").unwrap();
+        let s = c.space().unwrap();
+        let names: Vec<&str> = s.names().collect();
+        assert_eq!(
+            names,
+            [
+                "case.inlet.loss_coefficient@a",
+                "case.inlet.loss_coefficient@run-b",
+                "case.inlet.valve_opening_time_s",
+                "Gwsc"
+            ]
+        );
+        assert_eq!(c.dimension(), 4);
+        assert_eq!((s.params()[1].lower, s.params()[1].upper, s.params()[1].scale), (2.0, 20.0, Scale::Log));
+        // the coordinator's form names experiments by name, and its JSON reads back
+        let named = c.with_experiment_names();
+        assert_eq!(named.parameters[0].experiments, Some(vec!["a".to_string(), "run-b".to_string()]));
+        let back: CalibrationSpec = serde_json::from_str(&serde_json::to_string(&named).unwrap()).unwrap();
+        assert_eq!(back, named);
+        assert_eq!(back.space().unwrap(), s);
+        // a registry parameter's JSON has no `experiments` key (stored calibrations compare equal)
+        assert!(!serde_json::to_string(&c.parameters[2]).unwrap().contains("experiments"));
+    }
+
+    #[test]
+    fn case_field_parameters_that_cannot_be_used_are_refused_naming_the_field() {
+        let bad = |from: &str, to: &str| {
+            let text = APPARATUS.replace(from, to);
+            assert_ne!(text, APPARATUS, "{from}");
+            CalibrationSpec::from_toml(&text, "c.toml").unwrap_err().to_string()
+        };
+        let e = bad("lower = 0.5\nupper = 4.0", "upper = 4.0");
+        assert!(
+            e.contains("parameters[1] (`case.inlet.valve_opening_time_s`): a case field has no registry bounds"),
+            "{e}"
+        );
+        let e = bad("lower = 0.5", "lower = 5.0");
+        assert!(
+            e.contains("parameters[1] (case.inlet.valve_opening_time_s): bounds must be finite with lower < upper"),
+            "{e}"
+        );
+        let e = bad("name = \"Gwsc\"", "name = \"Gwsc\"\nexperiments = [\"a\"]");
+        assert!(e.contains("parameters[2].experiments (`Gwsc`): a registry parameter is one value"), "{e}");
+        let e = bad("[\"a\", \"runs/b.toml\"]", "[\"a\", \"c\"]");
+        assert!(
+            e.contains(
+                "parameters[0].experiments[1] (`c`): not an experiment of this calibration (its experiments: a, run-b)"
+            ),
+            "{e}"
+        );
+        let e = bad("[\"a\", \"runs/b.toml\"]", "[\"a\", \"runs/a.toml\"]");
+        assert!(e.contains("parameters[0].experiments[1] (`runs/a.toml`): names experiment `a` a second time"), "{e}");
+        let e = bad("[\"a\", \"runs/b.toml\"]", "[]");
+        assert!(e.contains("parameters[0].experiments (`case.inlet.loss_coefficient`): lists no experiment"), "{e}");
+        let e = bad("name = \"run-b\"", "name = \"a\"");
+        assert!(e.contains("experiments[0] and experiments[1] are both named `a`"), "{e}");
+        let e = bad("name = \"case.inlet.valve_opening_time_s\"", "name = \"case.inlet.valve_opening_time_s@a\"");
+        assert!(e.contains("`@` marks the per-experiment copies"), "{e}");
+        let e = bad("name = \"case.inlet.valve_opening_time_s\"", "name = \"case.inlet..x\"");
+        assert!(e.contains("parameters[1].name (`case.inlet..x`): not a case field"), "{e}");
+        let e = bad("name = \"case.inlet.valve_opening_time_s\"", "name = \"case.parameters.Gwsc\"");
+        assert!(e.contains("name the parameter `Gwsc` itself"), "{e}");
+        let e = bad("name = \"case.inlet.valve_opening_time_s\"", "name = \"case.inlet.loss_coefficient\"");
+        assert!(
+            e.contains(
+                "parameters[0] (`case.inlet.loss_coefficient`): is already free for every experiment in parameters[1]"
+            ),
+            "{e}"
+        );
+        let e = bad("[[stages]]", "[fixed]\n\"case.inlet.loss_coefficient\" = 3.0\n[[stages]]");
+        assert!(e.contains("fixed.case.inlet.loss_coefficient (`case.inlet.loss_coefficient`): a case field keeps the value in its case file"), "{e}");
+        assert!(e.starts_with("c.toml: "), "{e}");
+    }
+
+    #[test]
+    fn case_fields_are_checked_against_each_case_they_apply_to() {
+        let c = CalibrationSpec::from_toml(APPARATUS, "c.toml").unwrap();
+        let case = Case::from_toml(include_str!("../../tests/fixtures/tiny.toml"), "runs/a.toml").unwrap();
+        c.check_case_fields("a", &case, "runs/a.toml").unwrap();
+        let refused = |text: String, experiment: &str| {
+            let c = CalibrationSpec::from_toml(&text, "c.toml").unwrap();
+            c.check_case_fields(experiment, &case, "runs/a.toml").unwrap_err()
+        };
+        let e = refused(APPARATUS.replace("lower = 0.5", "lower = -0.5"), "a");
+        assert_eq!(e.field(), "parameters[1]");
+        let e = e.to_string();
+        assert!(
+            e.starts_with(
+                "parameters[1] (case.inlet.valve_opening_time_s), experiment `a` (runs/a.toml), at the lower bound: \
+                 inlet.valve_opening_time_s = -0.5 makes the case invalid"
+            ),
+            "{e}"
+        );
+        assert!(e.contains("must be ≥ 0") && e.contains("keep the bounds within"), "{e}");
+        let e = refused(APPARATUS.replace("case.inlet.valve_opening_time_s", "case.inlet.valve_time_s"), "run-b");
+        assert!(e.to_string().contains("experiment `run-b` (runs/a.toml): `inlet.valve_time_s` is not a field"), "{e}");
+        // a per-experiment field is checked only against its experiments' cases
+        let text = APPARATUS
+            .replace("[\"a\", \"runs/b.toml\"]", "[\"a\"]")
+            .replace("lower = 2.0", "lower = -2.0")
+            .replace("scale = \"log\"\n", "");
+        let c = CalibrationSpec::from_toml(&text, "c.toml").unwrap();
+        c.check_case_fields("run-b", &case, "runs/b.toml").unwrap();
+        assert!(c.check_case_fields("a", &case, "runs/a.toml").is_err());
     }
 
     #[test]

@@ -21,6 +21,7 @@
 //!   the budget is used, or earlier when a stop tolerance is met (and then says why).
 
 pub mod api;
+pub mod apparatus;
 pub mod config;
 pub mod cost;
 pub mod data;

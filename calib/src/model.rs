@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use cryofit_solver::case::Case;
+use cryofit_solver::case::{Case, FieldError};
 use cryofit_solver::driver;
 use cryofit_solver::fluids::FluidTable;
 use cryofit_solver::params::{ParamError, ParameterSet};
@@ -21,15 +21,26 @@ pub enum ModelError {
     /// The solver stopped before the end of the run (its error carries the numbers).
     #[error(transparent)]
     Simulation(#[from] driver::SimError),
+    /// The case fields of a point do not make a valid case.
+    #[error("case fields: {0}")]
+    CaseField(#[from] FieldError),
     /// A model other than the solver failed, for the reason given.
     #[error("{0}")]
     Failed(String),
 }
 
-/// A model evaluated at named parameter values (registry names, physical units).
+/// A model evaluated at named parameter values (registry names and case fields, see
+/// [`crate::apparatus`]; physical units).
 pub trait Model: Send + Sync + 'static {
     /// The model's time series, or why the run failed (for example where the solver diverged).
     fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, ModelError>;
+
+    /// The value the model runs with for `name` when a point does not give it, where the model
+    /// holds one of its own (the solver: a case field's value in its case); `None` otherwise.
+    /// A calibration starts a case field there.
+    fn own_value(&self, _name: &str) -> Option<f64> {
+        None
+    }
 
     /// The model as `Any`, so that callers can reach a concrete model's own methods (for
     /// example the solver's full output for reports).
@@ -37,6 +48,10 @@ pub trait Model: Send + Sync + 'static {
 }
 
 /// The two-fluid solver on one case.
+///
+/// A point's registry names set closure parameters; its case fields (`case.<path>`, and
+/// `case.<path>@<experiment>` for this model's experiment, see [`crate::apparatus`]) are set in a
+/// copy of the case before each run; the per-experiment values of other experiments are ignored.
 #[derive(Debug, Clone)]
 pub struct SolverModel {
     case: Case,
@@ -44,6 +59,8 @@ pub struct SolverModel {
     base: ParameterSet,
     /// Where [`SolverModel::run`] ends, s (at most the case's `time.end_s`).
     stop_s: f64,
+    /// The experiment whose case this is ([`SolverModel::with_experiment`]).
+    experiment: Option<String>,
 }
 
 impl SolverModel {
@@ -53,7 +70,19 @@ impl SolverModel {
         let mut set = driver::case_parameters(&case)?;
         set.overlay(base);
         let stop_s = case.time.end_s;
-        Ok(Self { case, fluid, base: set, stop_s })
+        Ok(Self { case, fluid, base: set, stop_s, experiment: None })
+    }
+
+    /// Names the experiment whose case this is: the per-experiment case fields of that name
+    /// (`case.<path>@<experiment>`) apply to its runs.
+    pub fn with_experiment(mut self, name: &str) -> Self {
+        self.experiment = Some(name.to_string());
+        self
+    }
+
+    /// The experiment whose case this is, if one was named.
+    pub fn experiment(&self) -> Option<&str> {
+        self.experiment.as_deref()
     }
 
     /// Sets the per-run wall-clock limit, s (a longer run ends as a failed evaluation).
@@ -89,32 +118,39 @@ impl SolverModel {
         self.stop_s
     }
 
+    /// The case as given (no case field of a point set).
     pub fn case(&self) -> &Case {
         &self.case
     }
 
-    /// The full parameter set of a run at `parameters`.
+    /// The full parameter set of a run at `parameters`: its registry names over the base values
+    /// (its case fields are for [`SolverModel::case_at`]).
     pub fn parameter_set(&self, parameters: &BTreeMap<String, f64>) -> Result<ParameterSet, ModelError> {
         let mut set = self.base.clone();
-        for (name, &value) in parameters {
+        for (name, &value) in parameters.iter().filter(|(name, _)| !crate::apparatus::is_case_name(name)) {
             set.set(name, value)?;
         }
         Ok(set)
     }
 
+    /// The case a run at `parameters` simulates: this model's case with the case fields of
+    /// `parameters` that apply to its experiment set and validated.
+    pub fn case_at(&self, parameters: &BTreeMap<String, f64>) -> Result<Case, ModelError> {
+        let sorted = crate::apparatus::sort(parameters, self.experiment.as_deref());
+        Ok(sorted.apply(&self.case)?)
+    }
+
     /// Runs the solver to [`SolverModel::stop_s`] and returns its whole output.
     pub fn run(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
-        if self.stop_s < self.case.time.end_s {
-            let mut case = self.case.clone();
-            case.time.end_s = self.stop_s;
-            return self.run_case(&case, parameters);
-        }
-        self.run_full(parameters)
+        let mut case = self.case_at(parameters)?;
+        case.time.end_s = case.time.end_s.min(self.stop_s);
+        self.run_case(&case, parameters)
     }
 
     /// Runs the solver to the case's own `time.end_s`.
     pub fn run_full(&self, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
-        self.run_case(&self.case, parameters)
+        let case = self.case_at(parameters)?;
+        self.run_case(&case, parameters)
     }
 
     fn run_case(&self, case: &Case, parameters: &BTreeMap<String, f64>) -> Result<driver::Output, ModelError> {
@@ -148,6 +184,14 @@ pub fn probes_dataset(probes: &[driver::Observation]) -> Dataset {
 impl Model for SolverModel {
     fn evaluate(&self, parameters: &BTreeMap<String, f64>) -> Result<Dataset, ModelError> {
         self.run(parameters).map(|out| probes_dataset(&out.probes))
+    }
+
+    fn own_value(&self, name: &str) -> Option<f64> {
+        let field = crate::apparatus::case_name(name)?;
+        if field.experiment.is_some_and(|e| Some(e) != self.experiment.as_deref()) {
+            return None;
+        }
+        self.case.field(field.path).ok()
     }
 
     fn as_any(&self) -> &dyn std::any::Any {

@@ -209,10 +209,28 @@ impl BuildError {
     }
 }
 
+/// Unit coordinates where a calibration over `experiments` starts: a registry parameter at its
+/// registry default, a case field at its value in the case of the first experiment it applies to
+/// ([`Model::own_value`]), anything else at the middle of its bounds; each clamped into its bounds.
+pub fn default_start(space: &crate::space::Space, experiments: &[Experiment]) -> Vec<f64> {
+    space
+        .params()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let registry = cryofit_solver::params::spec(&p.name).map(|s| s.default);
+            let own = || experiments.iter().find_map(|e| e.model.own_value(&p.name));
+            space.unit(i, registry.or_else(own).unwrap_or(0.5 * (p.lower + p.upper)))
+        })
+        .collect()
+}
+
 /// Builds one experiment from the texts of its case and data files (`*_label` name them in
 /// errors): checks that every measured station exists in the case, under the same name, and that
 /// the case runs at least as long as the data. The experiment's model runs only to the end of
-/// the data ([`SolverModel::with_end_at`](crate::model::SolverModel::with_end_at)).
+/// the data ([`SolverModel::with_end_at`](crate::model::SolverModel::with_end_at)), and the
+/// per-experiment case fields named `name` apply to it
+/// ([`SolverModel::with_experiment`](crate::model::SolverModel::with_experiment)).
 ///
 /// `fixed` holds parameter values that are not free; `max_evaluation_s` bounds each run's
 /// computing time (a longer run is a failed evaluation).
@@ -252,6 +270,7 @@ pub fn experiment_from_texts(
         fluid(&case.fluid.name).map_err(|message| BuildError::Fluid { case_label: case_label.to_string(), message })?;
     let model = crate::model::SolverModel::new(case, table, fixed)
         .map_err(|error| BuildError::Model { case_label: case_label.to_string(), error })?
+        .with_experiment(name)
         .with_wall_limit(max_evaluation_s)
         .with_end_at(data.end_time());
     Ok(Experiment { name: name.to_string(), model: Arc::new(model), data })

@@ -52,3 +52,99 @@ fn the_model_stops_at_the_first_output_time_after_the_data() {
     assert_eq!(model.clone().with_end_at(2000.0).stop_s(), 1000.0);
     assert_eq!(model.with_end_at(f64::NAN).stop_s(), 1000.0);
 }
+
+const TINY: &str = include_str!("../../tests/fixtures/tiny.toml");
+
+fn values(pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
+    pairs.iter().map(|&(k, v)| (k.to_string(), v)).collect()
+}
+
+/// A point's case fields set the case of the experiment they apply to: shared ones every case,
+/// `@<experiment>` ones only that experiment's (over a shared value), others' not at all.
+#[test]
+fn case_fields_of_a_point_set_the_case_of_their_experiment_only() {
+    use cryofit_calib::model::ModelError;
+    let e = experiment_from_texts(
+        "a",
+        TINY,
+        "tiny.toml",
+        &data_ending_at(4.0),
+        "data.csv",
+        nitrogen,
+        &ParameterSet::new(),
+        None,
+    )
+    .unwrap();
+    let solver = e.model.as_any().downcast_ref::<SolverModel>().unwrap();
+    assert_eq!(solver.experiment(), Some("a"));
+    let k = |pairs: &[(&str, f64)]| solver.case_at(&values(pairs)).unwrap().inlet.loss_coefficient;
+    assert_eq!(k(&[]), 10.0);
+    assert_eq!(k(&[("case.inlet.loss_coefficient", 8.0)]), 8.0);
+    assert_eq!(k(&[("case.inlet.loss_coefficient@b", 8.0)]), 10.0);
+    assert_eq!(k(&[("case.inlet.loss_coefficient", 5.0), ("case.inlet.loss_coefficient@a", 8.0)]), 8.0);
+    // the registry set ignores case fields
+    let set = solver.parameter_set(&values(&[("case.inlet.loss_coefficient", 8.0), ("Gwsc", 1.5)])).unwrap();
+    assert_eq!(set.explicit().len(), 1);
+
+    // the start of a case field is its value in the case
+    assert_eq!(e.model.own_value("case.inlet.loss_coefficient"), Some(10.0));
+    assert_eq!(e.model.own_value("case.inlet.loss_coefficient@a"), Some(10.0));
+    assert_eq!(e.model.own_value("case.inlet.loss_coefficient@b"), None);
+    assert_eq!(e.model.own_value("Gwsc"), None);
+    let space = cryofit_calib::Space::new(vec![
+        cryofit_calib::FreeParameter {
+            name: "case.inlet.loss_coefficient".into(),
+            lower: 2.0,
+            upper: 20.0,
+            scale: cryofit_calib::Scale::Linear,
+        },
+        cryofit_calib::FreeParameter {
+            name: "case.inlet.valve_opening_time_s@b".into(),
+            lower: 1.0,
+            upper: 3.0,
+            scale: cryofit_calib::Scale::Linear,
+        },
+        cryofit_calib::FreeParameter {
+            name: "Gwsc".into(),
+            lower: 0.5,
+            upper: 2.0,
+            scale: cryofit_calib::Scale::Linear,
+        },
+    ])
+    .unwrap();
+    let start = cryofit_calib::problem::default_start(&space, std::slice::from_ref(&e));
+    assert_eq!(start, vec![8.0 / 18.0, 0.5, space.unit(2, 1.0)]);
+
+    // the runs: another experiment's value changes nothing, a shared one does
+    let base = e.model.evaluate(&BTreeMap::new()).unwrap();
+    assert_eq!(e.model.evaluate(&values(&[("case.inlet.loss_coefficient@b", 3.0)])).unwrap(), base);
+    assert_ne!(e.model.evaluate(&values(&[("case.inlet.loss_coefficient", 3.0)])).unwrap(), base);
+    let err = e.model.evaluate(&values(&[("case.inlet.loss_coefficient", -1.0)])).unwrap_err();
+    assert!(matches!(err, ModelError::CaseField(_)), "{err}");
+    assert!(err.to_string().contains("inlet.loss_coefficient = -1 makes the case invalid"), "{err}");
+}
+
+/// The example calibration with apparatus parameters reads, makes its space, and its case fields
+/// hold in each NBS case they apply to.
+#[test]
+fn the_example_apparatus_calibration_is_valid() {
+    use cryofit_calib::config::CalibrationSpec;
+    let spec = CalibrationSpec::from_toml(
+        include_str!("../../examples/nbs/calibrate-apparatus.toml"),
+        "calibrate-apparatus.toml",
+    )
+    .unwrap();
+    let names: Vec<String> = spec.space().unwrap().names().map(str::to_string).collect();
+    assert_eq!(names.len(), 8);
+    assert!(names.contains(&"case.inlet.valve_opening_time_s@subcooled-4.2atm".to_string()), "{names:?}");
+    let cases = [
+        ("saturated-2.5atm", include_str!("../../examples/nbs/saturated-2.5atm.toml")),
+        ("saturated-3.4atm", include_str!("../../examples/nbs/saturated-3.4atm.toml")),
+        ("subcooled-4.2atm", include_str!("../../examples/nbs/subcooled-4.2atm.toml")),
+    ];
+    for (k, (name, text)) in cases.iter().enumerate() {
+        assert_eq!(&spec.experiments[k].label(k), name);
+        let case = Case::from_toml(text, name).unwrap();
+        spec.check_case_fields(name, &case, name).unwrap();
+    }
+}

@@ -19,17 +19,16 @@ use clap::Args;
 use cryofit_api as api;
 use cryofit_calib::Space;
 use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
-use cryofit_calib::data::Dataset;
 use cryofit_calib::inference::InferenceSummary;
 use cryofit_calib::pipeline::{Pipeline, StageReport};
-use cryofit_calib::problem::{Experiment, Problem, experiment_from_texts};
-use cryofit_solver::params::{self, ParameterSet};
+use cryofit_calib::problem::{Experiment, Problem, default_start, experiment_from_texts};
+use cryofit_solver::params::ParameterSet;
 use cryofit_worker::{Client, WorkerSettings};
 use serde_json::json;
 
 use crate::csv_text::CsvText;
 use crate::fluid_source;
-use crate::simulate::{fmt_num, probes_csv, write_outputs};
+use crate::output::{chilldown_pairs, fmt_num, fmt_sig, probes_csv, write_outputs};
 
 /// Arguments of `cryofit calibrate`.
 #[derive(Debug, Args)]
@@ -61,10 +60,10 @@ pub fn load(file: &Path) -> Result<Loaded> {
     // trajectories must be refused before that), with the ceilings a coordinator has by default
     cryofit_server::limits::check_calibration_sizes(&spec, &cryofit_server::limits::Limits::default())
         .map_err(|e| anyhow!("{label}: {e}"))?;
-    // stages and bounds next: they need no other file
+    // stages and bounds next: they need no other file (the start is set once the cases are read)
     let space = spec.space().map_err(|e| anyhow!("{label}: {e}"))?;
-    let start = default_start(&space);
-    let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
+    let mid = vec![0.5; space.dim()];
+    Pipeline::new(space.clone(), spec.stages.clone(), mid, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
     let dir = file.parent().unwrap_or(Path::new("."));
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
@@ -80,9 +79,7 @@ pub fn load(file: &Path) -> Result<Loaded> {
         };
         let case_text = read(&case_path, "case")?;
         let data_text = read(&data_path, "data")?;
-        let name = e.name.clone().unwrap_or_else(|| {
-            case_path.file_stem().map_or_else(|| format!("experiment-{k}"), |s| s.to_string_lossy().into_owned())
-        });
+        let name = e.label(k);
         if experiments.iter().any(|x: &Experiment| x.name == name) {
             bail!("{label}: experiments[{k}]: the name `{name}` is used twice; give each experiment its own `name`");
         }
@@ -98,21 +95,15 @@ pub fn load(file: &Path) -> Result<Loaded> {
             Some(spec.max_evaluation_s),
         )
         .map_err(|e| anyhow!("{label}: experiments[{k}]: {e}"))?;
+        let model = solver_of(&exp)?;
+        spec.check_case_fields(&name, model.case(), &case_path.display().to_string())
+            .map_err(|e| anyhow!("{label}: {e}"))?;
         experiments.push(exp);
     }
     let problem = Problem::new(experiments, spec.weights()).map_err(|e| anyhow!("{label}: {e}"))?;
+    let start = default_start(&space, &problem.experiments);
+    let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
     Ok(Loaded { spec, problem, pipeline })
-}
-
-/// Unit coordinates of the registry defaults (clamped into the calibration's bounds): where the
-/// first stage starts.
-pub fn default_start(space: &Space) -> Vec<f64> {
-    space
-        .params()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| space.unit(i, params::spec(&p.name).map_or(0.5 * (p.lower + p.upper), |s| s.default)))
-        .collect()
 }
 
 /// File name of the embedded coordinator's database in the output folder.
@@ -232,14 +223,14 @@ pub(crate) fn lock_folder(dir: &Path, busy: impl FnOnce() -> anyhow::Error) -> R
     }
 }
 
-/// The calibration request for stored experiments `ids`.
+/// The calibration request for stored experiments `ids` (experiments named by their names).
 fn request(spec: &CalibrationSpec, ids: Vec<i64>) -> api::CreateCalibration {
     api::CreateCalibration {
         name: spec.name.clone(),
         description: spec.description.clone(),
         seed: spec.seed,
         experiments: ids,
-        parameters: spec.parameters.clone(),
+        parameters: spec.with_experiment_names().parameters,
         fixed: spec.fixed.clone(),
         weights: spec.weights.clone(),
         stages: spec.stages.clone(),
@@ -501,37 +492,6 @@ fn solver_of(e: &Experiment) -> Result<cryofit_calib::model::SolverModel> {
         .ok_or_else(|| anyhow!("experiment `{}` is not a solver model", e.name))
 }
 
-/// First time a series falls below `threshold`, linearly interpolated; `None` if it never does.
-pub fn first_below(times: &[f64], values: &[f64], threshold: f64) -> Option<f64> {
-    if values.first().is_some_and(|&v| v < threshold) {
-        return times.first().copied();
-    }
-    for k in 1..values.len() {
-        if values[k] < threshold && values[k - 1] >= threshold {
-            let w = (values[k - 1] - threshold) / (values[k - 1] - values[k]);
-            return Some(times[k - 1] + w * (times[k] - times[k - 1]));
-        }
-    }
-    None
-}
-
-/// Chilldown times (wall below the inlet liquid temperature + 15 K) of data and model, per station.
-pub(crate) fn chilldown_pairs(
-    data: &Dataset,
-    out: &cryofit_solver::driver::Output,
-) -> BTreeMap<String, (Option<f64>, Option<f64>)> {
-    let threshold = out.summary.inlet_liquid_temperature_k + cryofit_solver::driver::CHILLDOWN_MARGIN_K;
-    let mut m = BTreeMap::new();
-    for ((station, quantity), s) in &data.series {
-        if quantity != "wall_temperature_k" {
-            continue;
-        }
-        let model = out.summary.chilldown_time_s.get(station).copied().flatten();
-        m.insert(station.clone(), (first_below(&s.times, &s.values, threshold), model));
-    }
-    m
-}
-
 type FitRow<'a> = (&'a Experiment, cryofit_calib::cost::Fit, cryofit_solver::driver::Output);
 
 fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_points: usize) -> Result<String> {
@@ -651,13 +611,14 @@ fn uncertainty(reports: &[StageReport]) -> serde_json::Value {
     serde_json::Value::Null
 }
 
-/// `best.toml`: the fixed and the best free values, a flat table for `cryofit simulate --params`.
+/// `best.toml`: the fixed and the best free values, a flat table for `cryofit simulate --params`;
+/// case fields by their quoted `case.` names (`"case.inlet.loss_coefficient@run-2" = 7.9`).
 fn best_toml(spec: &CalibrationSpec, best: &BTreeMap<String, f64>) -> String {
     let mut s = format!("# best parameters of calibration \"{}\" (cryofit calibrate)\n", spec.name.replace('"', "'"));
     let mut all: BTreeMap<&str, f64> = spec.fixed.iter().map(|(k, v)| (k.as_str(), *v)).collect();
     all.extend(best.iter().map(|(k, v)| (k.as_str(), *v)));
     for (k, v) in all {
-        let _ = writeln!(s, "{k} = {}", toml_num(v));
+        let _ = writeln!(s, "{} = {}", crate::param_values::toml_key(k), toml_num(v));
     }
     s
 }
@@ -779,15 +740,6 @@ fn short_quantity(q: &str) -> &str {
         "pressure_pa" => "p (Pa)",
         other => other,
     }
-}
-
-/// Four significant digits.
-pub(crate) fn fmt_sig(v: f64) -> String {
-    if !v.is_finite() {
-        return format!("{v}");
-    }
-    let a = v.abs();
-    if a != 0.0 && !(1e-3..1e5).contains(&a) { format!("{v:.3e}") } else { format!("{}", (v * 1e4).round() / 1e4) }
 }
 
 /// The progress of a calibration on stderr: stage, evaluations, best cost and ETA, redrawn at

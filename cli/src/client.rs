@@ -60,11 +60,7 @@ pub fn read_calibration(file: &Path) -> Result<(CalibrationSpec, Vec<api::Create
         };
         let case = read(&e.case, "case")?;
         let data = read(&e.data, "data")?;
-        let name = e.name.clone().unwrap_or_else(|| {
-            Path::new(&e.case)
-                .file_stem()
-                .map_or_else(|| format!("experiment-{k}"), |s| s.to_string_lossy().into_owned())
-        });
+        let name = e.label(k);
         out.push(api::CreateExperiment { name, case, data });
     }
     Ok((spec, out))
@@ -89,7 +85,7 @@ pub fn submit(args: &SubmitArgs) -> Result<()> {
             description: spec.description.clone(),
             seed: spec.seed,
             experiments: ids,
-            parameters: spec.parameters.clone(),
+            parameters: spec.with_experiment_names().parameters,
             fixed: spec.fixed.clone(),
             weights: spec.weights.clone(),
             stages: spec.stages.clone(),

@@ -1,7 +1,7 @@
 //! CSV text for the output files, written with the csv crate: a field that holds a comma, a
 //! quote or a line break is quoted (a quote inside doubled), every record ends in `\n`, and every
 //! record of a file has as many fields as its header. Numbers are formatted by the callers
-//! ([`crate::simulate::fmt_num`]), so that each reads back to the same `f64`.
+//! ([`crate::output::fmt_num`]), so that each reads back to the same `f64`.
 
 use anyhow::{Context, Result};
 

@@ -6,6 +6,8 @@ mod client;
 mod csv_text;
 mod fluid_source;
 mod healthcheck;
+mod output;
+mod param_values;
 mod params_cmd;
 mod predict;
 mod progress;

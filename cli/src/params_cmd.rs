@@ -5,7 +5,7 @@ use clap::Args;
 use cryofit_solver::params::{ParamSpec, REGISTRY};
 use serde::Serialize;
 
-use crate::simulate::fmt_num;
+use crate::output::fmt_num;
 
 /// Arguments of `cryofit params`.
 #[derive(Debug, Args)]

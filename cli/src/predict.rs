@@ -2,12 +2,19 @@
 //! was not in the calibration over the calibrated parameters' posterior (paper eq.
 //! "bayes_forecast") and writes median and 5–95 % bands of every probe and the distribution of
 //! each station's chilldown time.
+//!
+//! The calibration's case fields apply as in `cryofit simulate --params` (see
+//! [`crate::param_values`]): its shared ones to any case, its per-experiment ones only when the case
+//! is taken as that experiment (`--experiment`, by default the case file's stem); the others are
+//! skipped and named on stderr.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
+use cryofit_calib::apparatus;
+use cryofit_calib::config::CalibrationSpec;
 use cryofit_calib::draws::gaussian_draws;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver::{self, Output};
@@ -17,7 +24,7 @@ use serde_json::json;
 
 use crate::csv_text::CsvText;
 use crate::fluid_source;
-use crate::simulate::{fmt_num, write_outputs};
+use crate::output::{fmt_num, write_outputs};
 
 /// Arguments of `cryofit predict`.
 #[derive(Debug, Args)]
@@ -36,6 +43,10 @@ pub struct PredictArgs {
     /// Output directory [default: out/predict-<case file stem>].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
+    /// apply, other experiments' are skipped [default: the case file's stem].
+    #[arg(long, value_name = "NAME")]
+    experiment: Option<String>,
 }
 
 /// The parameter sets to run: posterior draws completed with the best and fixed values.
@@ -94,9 +105,17 @@ fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>,
                     .ok_or_else(|| anyhow!("{}: uncertainty value of {n}", result_path.display()))
             })
             .collect::<Result<_>>()?;
+        // the calibration's own bounds (a case field has no others), else the registry's
+        let space =
+            serde_json::from_value::<CalibrationSpec>(result["calibration"].clone()).ok().and_then(|s| s.space().ok());
         let bounds: Vec<(f64, f64)> = names
             .iter()
-            .map(|n| params::spec(n).map(|s| (s.lower, s.upper)).ok_or_else(|| anyhow!("unknown parameter {n}")))
+            .map(|n| {
+                let own = space.as_ref().and_then(|s| s.params().iter().find(|p| &p.name == n));
+                own.map(|p| (p.lower, p.upper))
+                    .or_else(|| params::spec(n).map(|s| (s.lower, s.upper)))
+                    .ok_or_else(|| anyhow!("{}: no bounds for parameter {n}", result_path.display()))
+            })
             .collect::<Result<_>>()?;
         let rows =
             gaussian_draws(&mean, &cov, &bounds, n, seed).map_err(|e| anyhow!("{}: {e}", result_path.display()))?;
@@ -155,14 +174,20 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     let case = Case::from_toml(&text, &case_path)?;
     let base = driver::case_parameters(&case).map_err(|e| anyhow!("{case_path}: {e}"))?;
     let (sets, method) = draws(&args.from, args.samples, args.seed)?;
+    let experiment = crate::param_values::experiment_of(&args.case, args.experiment.as_deref());
+    if let Some(first) = sets.first() {
+        crate::param_values::report_skipped(&apparatus::sort(first, Some(&experiment)).skipped, &experiment);
+    }
     let table = fluid_source::load(&case.fluid.name)?;
     let runs: Vec<Result<Output, String>> = sets
         .par_iter()
         .map(|values| {
+            let sorted = apparatus::sort(values, Some(&experiment));
             let mut set: ParameterSet = base.clone();
-            for (k, &v) in values {
+            for (k, &v) in &sorted.registry {
                 set.set(k, v).map_err(|e| e.to_string())?;
             }
+            let case = sorted.apply(&case).map_err(|e| format!("case fields: {e}"))?;
             driver::run(&case, &table, &set, &mut |_| {}).map_err(|e| e.to_string())
         })
         .collect();

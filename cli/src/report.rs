@@ -101,7 +101,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let c = &data.calibration;
     let html = index_html(&format!("{} — calibration report", c.name), &figures::facts(c), &entries);
     files.push(("index.html".into(), html.into_bytes()));
-    crate::simulate::write_outputs(&args.out, &files)?;
+    crate::output::write_outputs(&args.out, &files)?;
 
     let drawn = entries.iter().filter(|e| e.skipped.is_none()).count();
     println!(

@@ -1,5 +1,8 @@
 //! `cryofit simulate CASE.toml [--out DIR] [--set NAME=VALUE]... [--params FILE.toml]
-//! [--noise QUANTITY=SIGMA]... [--seed N]`.
+//! [--experiment NAME] [--noise QUANTITY=SIGMA]... [--seed N]`.
+//!
+//! `--set` and `--params` take registry parameters and case fields (`case.<path>`; see
+//! [`crate::param_values`] for the forms and the precedence).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -16,6 +19,8 @@ use rand_distr::{Distribution, Normal};
 
 use crate::csv_text::CsvText;
 use crate::fluid_source;
+use crate::output::{chilldown_pairs, fmt_num, fmt_sig, probes_csv, write_outputs};
+use crate::param_values::{Applied, ParamValues, apply_case_fields, parse_set, read_params_file, split_assignment};
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
 use cryofit_calib::model::probes_dataset;
@@ -30,12 +35,18 @@ pub struct SimulateArgs {
     /// Output directory [default: out/<case file stem>].
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
-    /// Set a registry parameter (repeatable; overrides --params and the case's [parameters]).
+    /// Set a registry parameter, or a case field by its `case.` name (`case.inlet.loss_coefficient=8`)
+    /// (repeatable; overrides --params, the case's [parameters] and its fields).
     #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     set: Vec<String>,
-    /// A TOML file of `name = number` parameter values (overrides the case's [parameters]).
+    /// A TOML file of `name = number` values: registry parameters and case fields
+    /// (`"case.inlet.loss_coefficient" = 8.0`), as `best.toml` of a calibration holds them.
     #[arg(long, value_name = "FILE.toml")]
     params: Option<PathBuf>,
+    /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
+    /// apply, other experiments' are skipped [default: the case file's stem].
+    #[arg(long, value_name = "NAME")]
+    experiment: Option<String>,
     /// Add Gaussian noise N(0, SIGMA) to every probe value of QUANTITY (repeatable).
     #[arg(long = "noise", value_name = "QUANTITY=SIGMA", allow_hyphen_values = true)]
     noise: Vec<String>,
@@ -54,7 +65,10 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let case_path = args.case.display().to_string();
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {case_path}"))?;
     let case = Case::from_toml(&text, &case_path)?;
-    let params = parameters(&case, &case_path, args.params.as_deref(), &args.set)?;
+    let experiment = crate::param_values::experiment_of(&args.case, args.experiment.as_deref());
+    let (applied, params) = parameters(&case, &case_path, &experiment, args.params.as_deref(), &args.set)?;
+    crate::param_values::report_skipped(&applied.skipped, &experiment);
+    let case = applied.case;
     let noise = parse_noise(&args.noise)?;
     let out_dir = match &args.out {
         Some(dir) => dir.clone(),
@@ -108,7 +122,8 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         Some((file, data)) => Some(compare(&output, file, data)?),
         None => None,
     };
-    let summary = summary_json(&output, &case_path, &params, &noise, args.seed, comparison.as_ref())?;
+    let summary =
+        summary_json(&output, &case_path, &params, &applied.case_fields, &noise, args.seed, comparison.as_ref())?;
     write_outputs(
         &out_dir,
         &[
@@ -117,7 +132,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
             ("summary.json", summary),
         ],
     )?;
-    print_summary(&case, &case_path, &output, &params, &noise, args.seed, &out_dir);
+    print_summary(&case, &case_path, &output, &params, &applied.case_fields, &noise, args.seed, &out_dir);
     if let Some(c) = &comparison {
         print_comparison(c);
     }
@@ -138,13 +153,13 @@ fn compare(output: &Output, file: &str, data: &Dataset) -> Result<Comparison> {
     let model = probes_dataset(&output.probes);
     let fit = cryofit_calib::cost::fit(&model, data, &Weights::default())
         .map_err(|e| anyhow!("--data {file}: {e} (the case's [[stations]] and time.end_s must cover the data)"))?;
-    Ok(Comparison { file: file.to_string(), fit, chilldown: crate::calibrate::chilldown_pairs(data, output) })
+    Ok(Comparison { file: file.to_string(), fit, chilldown: chilldown_pairs(data, output) })
 }
 
 fn print_comparison(c: &Comparison) {
     println!("  against {}:", c.file);
     for ((station, quantity), s) in &c.fit.series {
-        println!("    {station} {quantity}: RMS {} over {} readings", crate::calibrate::fmt_sig(s.rms), s.points);
+        println!("    {station} {quantity}: RMS {} over {} readings", fmt_sig(s.rms), s.points);
     }
     for (station, (d, m)) in &c.chilldown {
         match (d, m) {
@@ -158,53 +173,30 @@ fn print_comparison(c: &Comparison) {
     }
 }
 
-/// The parameter set with precedence `--set` > `--params` > the case's `[parameters]` > defaults.
-fn parameters(case: &Case, case_path: &str, params_file: Option<&Path>, sets: &[String]) -> Result<ParameterSet> {
+/// The case and the parameter set of the run, with precedence `--set` > `--params` > the case's
+/// own `[parameters]` and fields > registry defaults; the case is taken as experiment
+/// `experiment` for per-experiment values.
+fn parameters(
+    case: &Case,
+    case_path: &str,
+    experiment: &str,
+    params_file: Option<&Path>,
+    sets: &[String],
+) -> Result<(Applied, ParameterSet)> {
     let mut params = driver::case_parameters(case).map_err(|e| anyhow!("{case_path}: {e}"))?;
+    let mut sources = Vec::new();
     if let Some(file) = params_file {
-        params.overlay(&read_params_file(file)?);
+        sources.push(read_params_file(file)?);
     }
     for arg in sets {
-        let (name, value) = split_assignment(arg)
-            .ok_or_else(|| anyhow!("--set {arg}: expected NAME=VALUE, e.g. --set vm_coeff=0.7"))?;
-        let value: f64 = value.parse().map_err(|_| anyhow!("--set {arg}: '{value}' is not a number"))?;
-        params.set(name, value).map_err(|e| anyhow!("--set {arg}: {e}"))?;
+        sources.push(parse_set(arg)?);
     }
-    Ok(params)
-}
-
-/// `NAME=VALUE` split and trimmed; `None` when there is no `=` or the name is empty.
-fn split_assignment(arg: &str) -> Option<(&str, &str)> {
-    let (name, value) = arg.split_once('=')?;
-    let name = name.trim();
-    (!name.is_empty()).then_some((name, value.trim()))
-}
-
-/// Reads a `--params` file: a flat TOML table of `name = number`.
-pub(crate) fn read_params_file(path: &Path) -> Result<ParameterSet> {
-    let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {file}"))?;
-    let table: toml::Table = toml::from_str(&text).map_err(|e| {
-        let msg = e.message().trim().replace('\n', " ");
-        match e.span() {
-            Some(s) => anyhow!("{file}: line {}: {msg}", text[..s.start.min(text.len())].lines().count().max(1)),
-            None => anyhow!("{file}: {msg}"),
-        }
-    })?;
-    let mut set = ParameterSet::new();
-    for (key, value) in &table {
-        let number = match value {
-            toml::Value::Float(f) => *f,
-            // integers are exact in f64 up to 2^53, far beyond any parameter bound
-            toml::Value::Integer(i) => *i as f64,
-            toml::Value::Table(_) => {
-                bail!("{file}: '{key}' is a table; the file must be a flat list of `name = number` lines")
-            }
-            other => bail!("{file}: {key} = {other}: expected a number, found a {}", other.type_str()),
-        };
-        set.set(key, number).map_err(|e| anyhow!("{file}: {e}"))?;
+    for source in &sources {
+        params.overlay(&source.registry()?);
     }
-    Ok(set)
+    let refs: Vec<&ParamValues> = sources.iter().collect();
+    let applied = apply_case_fields(case, case_path, experiment, &refs)?;
+    Ok((applied, params))
 }
 
 /// `--noise QUANTITY=SIGMA` arguments as quantity → sigma.
@@ -248,26 +240,9 @@ fn fnv1a(s: &str) -> u64 {
     s.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
-/// A number that reads back to the same `f64`: plain decimals for ordinary magnitudes,
-/// scientific notation otherwise (both are Rust's shortest round-trip forms).
-pub fn fmt_num(v: f64) -> String {
-    let a = v.abs();
-    if a == 0.0 || !a.is_finite() || (1e-3..1e6).contains(&a) { format!("{v}") } else { format!("{v:e}") }
-}
-
 /// `v` rounded to 6 significant digits, for messages (hides 0.49999999999999994).
 fn round_sig(v: f64) -> f64 {
     format!("{v:.5e}").parse().unwrap_or(v)
-}
-
-/// `probes.csv` (also each `fit-<experiment>.csv` of a calibration): the long format of DESIGN.md
-/// §3.2.
-pub(crate) fn probes_csv(probes: &[Observation]) -> Result<String> {
-    let mut t = CsvText::new(cryofit_calib::data::HEADER.split(','))?;
-    for o in probes {
-        t.row([&fmt_num(o.time_s), o.station.as_str(), &fmt_num(o.x_m), o.quantity, &fmt_num(o.value)])?;
-    }
-    t.finish()
 }
 
 fn profiles_csv(profiles: &[ProfilePoint]) -> Result<String> {
@@ -278,11 +253,13 @@ fn profiles_csv(profiles: &[ProfilePoint]) -> Result<String> {
     t.finish()
 }
 
-/// The run summary plus the case path, the parameters set explicitly and the noise settings.
+/// The run summary plus the case path, the parameters and case fields set explicitly and the
+/// noise settings.
 fn summary_json(
     output: &Output,
     case_path: &str,
     params: &ParameterSet,
+    case_fields: &BTreeMap<String, f64>,
     noise: &BTreeMap<&'static str, f64>,
     seed: u64,
     comparison: Option<&Comparison>,
@@ -291,6 +268,9 @@ fn summary_json(
     let obj = value.as_object_mut().context("the run summary is not a JSON object")?;
     obj.insert("case".into(), case_path.into());
     obj.insert("parameters".into(), serde_json::to_value(params.explicit())?);
+    if !case_fields.is_empty() {
+        obj.insert("case_fields".into(), serde_json::to_value(case_fields)?);
+    }
     obj.insert("noise".into(), serde_json::to_value(noise)?);
     obj.insert("seed".into(), seed.into());
     if let Some(c) = comparison {
@@ -311,40 +291,13 @@ fn summary_json(
     Ok(text)
 }
 
-/// Creates `dir` and writes every file under a temporary name first, then renames them all: a
-/// failed write leaves no partial file behind (and leaves earlier results in place).
-pub(crate) fn write_outputs<N: AsRef<str>, C: AsRef<[u8]>>(dir: &Path, files: &[(N, C)]) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory {}", dir.display()))?;
-    let pid = std::process::id();
-    let temps: Vec<(PathBuf, PathBuf)> = files
-        .iter()
-        .map(|(name, _)| (dir.join(format!(".{}.{pid}.tmp", name.as_ref())), dir.join(name.as_ref())))
-        .collect();
-    let cleanup = |temps: &[(PathBuf, PathBuf)]| {
-        for (tmp, _) in temps {
-            let _ = std::fs::remove_file(tmp);
-        }
-    };
-    for ((tmp, _), (_, contents)) in temps.iter().zip(files) {
-        if let Err(e) = std::fs::write(tmp, contents.as_ref()) {
-            cleanup(&temps);
-            return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
-        }
-    }
-    for (k, (tmp, dest)) in temps.iter().enumerate() {
-        if let Err(e) = std::fs::rename(tmp, dest) {
-            cleanup(&temps[k..]);
-            return Err(e).with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()));
-        }
-    }
-    Ok(())
-}
-
+#[allow(clippy::too_many_arguments)]
 fn print_summary(
     case: &Case,
     case_path: &str,
     output: &Output,
     params: &ParameterSet,
+    case_fields: &BTreeMap<String, f64>,
     noise: &BTreeMap<&'static str, f64>,
     seed: u64,
     out_dir: &Path,
@@ -369,6 +322,10 @@ fn print_summary(
     if !params.explicit().is_empty() {
         let list: Vec<String> = params.explicit().iter().map(|(k, v)| format!("{k} = {}", fmt_num(*v))).collect();
         println!("  parameters: {}", list.join(", "));
+    }
+    if !case_fields.is_empty() {
+        let list: Vec<String> = case_fields.iter().map(|(k, v)| format!("{k} = {}", fmt_num(*v))).collect();
+        println!("  case fields: {}", list.join(", "));
     }
     if !noise.is_empty() {
         let list: Vec<String> = noise.iter().map(|(k, v)| format!("{k} σ = {}", fmt_num(*v))).collect();
@@ -423,35 +380,6 @@ impl RunProgress {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn numbers_round_trip() {
-        for v in [0.0, -0.0, 1.0, 0.1, 77.355, 1e5, 123456.789, 1e-7, 6.02e23, -3.5e-300, f64::MIN_POSITIVE, 1.0 / 3.0]
-        {
-            let s = fmt_num(v);
-            assert_eq!(s.parse::<f64>().unwrap().to_bits(), v.to_bits(), "{v} -> {s}");
-        }
-        assert_eq!(fmt_num(80.0), "80");
-        assert_eq!(fmt_num(1e-7), "1e-7");
-    }
-
-    #[test]
-    fn probes_with_any_station_name_read_back_as_data() {
-        let obs = |station: &str, t: f64| Observation {
-            time_s: t,
-            station: station.into(),
-            x_m: 6.1,
-            quantity: "wall_temperature_k",
-            value: 290.0 - t,
-        };
-        let name = "TS \"1\",\nnorth";
-        let text = probes_csv(&[obs(name, 0.0), obs(name, 0.5), obs("TS2", 0.0)]).unwrap();
-        assert!(text.starts_with("time_s,station,x_m,quantity,value\n0,\"TS \"\"1\"\",\nnorth\",6.1,"), "{text}");
-        let data = Dataset::from_csv(&text, "probes.csv").unwrap();
-        let s = &data.series[&(name.to_string(), "wall_temperature_k".to_string())];
-        assert_eq!((s.times.as_slice(), s.values.as_slice()), ([0.0, 0.5].as_slice(), [290.0, 289.5].as_slice()));
-        assert_eq!(data.len(), 3);
-    }
 
     #[test]
     fn the_progress_template_parses() {

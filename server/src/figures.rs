@@ -209,6 +209,7 @@ impl<'a> Context<'a> {
                 let (table, _) = fluids(&case.fluid.name).map_err(|m| format!("{case_label}: {m}"))?;
                 let mut model = SolverModel::new(case.clone(), table, &fixed)
                     .map_err(|m| format!("{case_label}: {m}"))?
+                    .with_experiment(&e.name)
                     .with_wall_limit(Some(spec.max_evaluation_s));
                 if end_at_data {
                     model = model.with_end_at(data.end_time());
@@ -247,9 +248,13 @@ fn cost_history(ctx: &Context<'_>) -> Figure {
     Figure { name: name.into(), title: title.into(), plot: Ok(plot) }
 }
 
-/// `name (unit)`-style unit of a registry parameter (empty when dimensionless).
+/// `name (unit)`-style unit of a registry parameter or a case field (empty when dimensionless).
 fn unit_of(name: &str) -> String {
-    params::spec(name).map(|s| s.unit.to_string()).filter(|u| u != "-" && u != "1").unwrap_or_default()
+    let unit = match cryofit_calib::apparatus::case_name(name) {
+        Some(field) => Some(cryofit_solver::case::field_unit(field.path)),
+        None => params::spec(name).map(|s| s.unit),
+    };
+    unit.map(str::to_string).filter(|u| u != "-" && u != "1").unwrap_or_default()
 }
 
 fn label_of(name: &str) -> String {

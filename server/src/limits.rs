@@ -24,7 +24,7 @@ const PROFILE_VALUES_PER_CELL: f64 = 8.0;
 /// whose embedded coordinator would see the calibration only after the pipeline is built): the
 /// message names the field and the limit.
 pub fn check_calibration_sizes(spec: &CalibrationSpec, limits: &Limits) -> Result<(), String> {
-    check_calibration(spec, spec.parameters.len(), limits).map_err(|e| e.message)
+    check_calibration(spec, spec.dimension(), limits).map_err(|e| e.message)
 }
 
 /// Checks the sizes of a calibration (stages, budgets, optimiser state, evaluation time) against

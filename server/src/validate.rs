@@ -6,8 +6,8 @@ use cryofit_api as api;
 use cryofit_calib::config::{CalibrationSpec, DEFAULT_MAX_EVALUATION_S, ExperimentRef};
 use cryofit_calib::model::SolverModel;
 use cryofit_calib::pipeline::Pipeline;
-use cryofit_calib::problem::{Problem, experiment_from_texts};
-use cryofit_solver::params::{self, ParameterSet};
+use cryofit_calib::problem::{Problem, default_start, experiment_from_texts};
+use cryofit_solver::params::ParameterSet;
 
 use crate::fluids::FluidLoader;
 use crate::invalid::Invalid;
@@ -95,7 +95,7 @@ pub fn calibration(
     let spec = spec_of(req, experiments);
     // sizes first (plain arithmetic on the request): building the pipeline allocates what its
     // stages ask for, and the limits name the flag that sets them
-    limits::check_calibration(&spec, spec.parameters.len(), limits)?;
+    limits::check_calibration(&spec, spec.dimension(), limits)?;
     spec.validate().map_err(|e| Invalid::from_message(e.to_string()))?;
     let mut fixed = ParameterSet::new();
     for (name, &v) in &spec.fixed {
@@ -127,24 +127,21 @@ pub fn calibration(
         .map_err(|m| Invalid::at(field.clone(), m.to_string()))?;
         if let Some(model) = exp.model.as_any().downcast_ref::<SolverModel>() {
             limits::check_outputs(model, &case_label, &field, limits)?;
+            spec.check_case_fields(&e.name, model.case(), &case_label)
+                .map_err(|m| Invalid::from_message(m.to_string()))?;
         }
         if let Some((fluid, h)) = hash {
             hashes.insert(fluid, h);
         }
         built.push(exp);
     }
-    Problem::new(built, spec.weights()).map_err(|m| {
+    let problem = Problem::new(built, spec.weights()).map_err(|m| {
         let mut inv = Invalid::from_message(m.to_string());
         inv.field.get_or_insert_with(|| "experiments".into());
         inv
     })?;
     let space = spec.space().map_err(|e| Invalid::from_message(e.to_string()))?;
-    let start: Vec<f64> = space
-        .params()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| space.unit(i, params::spec(&p.name).map_or(0.5 * (p.lower + p.upper), |s| s.default)))
-        .collect();
+    let start = default_start(&space, &problem.experiments);
     let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|m| {
         let mut inv = Invalid::from_message(m.to_string());
         if inv.field.is_none() {
@@ -158,6 +155,69 @@ pub fn calibration(
 #[cfg(test)]
 mod tests {
     use crate::invalid::field_of;
+    use cryofit_api as api;
+    use serde_json::json;
+
+    fn stored(id: i64, name: &str) -> api::Experiment {
+        api::Experiment {
+            id,
+            name: name.into(),
+            fluid: "nitrogen".into(),
+            case: include_str!("../../tests/fixtures/tiny.toml").into(),
+            data: include_str!("../../tests/fixtures/tiny-data.csv").into(),
+            created: 0,
+        }
+    }
+
+    fn request(parameters: serde_json::Value) -> api::CreateCalibration {
+        serde_json::from_value(json!({
+            "name": "apparatus", "experiments": [1, 2], "parameters": parameters,
+            "stages": [{"algorithm": "sensitivity", "budget": 5}]
+        }))
+        .expect("request")
+    }
+
+    fn check(parameters: serde_json::Value) -> Result<super::Prepared, crate::invalid::Invalid> {
+        let rows = [stored(1, "a"), stored(2, "b")];
+        super::calibration(&request(parameters), &rows, &crate::fluids::embedded_fluids(), &api::Limits::default())
+    }
+
+    /// Case fields are checked at submission against the stored experiments' cases, by experiment
+    /// name, with the messages of a local calibration; the pipeline starts them at the case's value.
+    #[test]
+    fn case_field_parameters_are_checked_against_the_stored_cases() {
+        let ok = check(json!([
+            {"name": "case.inlet.loss_coefficient", "lower": 2.0, "upper": 20.0, "experiments": ["b"]},
+            {"name": "case.inlet.valve_opening_time_s", "lower": 1.0, "upper": 5.0},
+        ]))
+        .expect("valid");
+        let names: Vec<&str> = ok.pipeline.space().names().collect();
+        assert_eq!(names, ["case.inlet.loss_coefficient@b", "case.inlet.valve_opening_time_s"]);
+        // a sensitivity stage's first point is the start
+        let mut pipeline = ok.pipeline;
+        let start = &pipeline.ask(1)[0].parameters;
+        assert_eq!(start["case.inlet.loss_coefficient@b"], 10.0, "the case's value");
+        assert_eq!(start["case.inlet.valve_opening_time_s"], 2.0, "the case's value, not the middle");
+
+        let e = check(json!([{"name": "case.inlet.loss_coefficient", "lower": -2.0, "upper": 20.0}])).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("parameters[0]"));
+        assert!(
+            e.message.starts_with(
+                "parameters[0] (case.inlet.loss_coefficient), experiment `a` (experiment 1 case), at the lower bound"
+            ),
+            "{}",
+            e.message
+        );
+        let e =
+            check(json!([{"name": "case.inlet.loss_coefficient", "lower": 2.0, "upper": 20.0, "experiments": ["c"]}]))
+                .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("parameters[0].experiments[0]"));
+        assert!(e.message.contains("not an experiment of this calibration (its experiments: a, b)"), "{}", e.message);
+        let e = check(json!([{"name": "case.inlet.loss_coeficient", "lower": 2.0, "upper": 20.0}])).unwrap_err();
+        assert!(e.message.contains("did you mean `inlet.loss_coefficient`?"), "{}", e.message);
+        let e = check(json!([{"name": "case.inlet.loss_coefficient"}])).unwrap_err();
+        assert!(e.message.contains("give both `lower` and `upper`"), "{}", e.message);
+    }
 
     #[test]
     fn names_are_counted_in_characters() {

@@ -2,9 +2,14 @@
 //!
 //! Parsing takes the file's text and a name to put in messages; it does no I/O. Every error is
 //! one line naming the file, the field (as a dotted path) and what to change. Unknown fields are
-//! errors.
+//! errors. [`Case::field`] and [`Case::with_fields`] read and set any numeric field by its TOML
+//! path (module `fields`), for calibrations that free a field of the apparatus.
 
-use serde::Deserialize;
+mod fields;
+
+pub use fields::{FieldError, field_unit};
+
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 use crate::fluids;
@@ -22,7 +27,7 @@ pub struct CaseError {
 
 /// A value that is constant or a piecewise-linear table of `[x, value]` points (in time for
 /// boundary conditions, in distance for initial profiles). Outside the table the end values hold.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum Profile {
     /// The same value everywhere / always.
@@ -112,7 +117,7 @@ impl Profile {
 }
 
 /// `[fluid]`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FluidSection {
     /// Table name: nitrogen, hydrogen (normal), parahydrogen, oxygen, methane (or an alias such as N2).
@@ -120,7 +125,7 @@ pub struct FluidSection {
 }
 
 /// `[pipe]`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PipeSection {
     /// Pipe length, m.
@@ -148,7 +153,7 @@ fn zero_profile() -> Profile {
 }
 
 /// Boundary kinds of `[inlet]` and `[outlet]`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BoundaryKind {
     /// A large tank at a given pressure and temperature (or quality) behind a valve.
@@ -162,7 +167,7 @@ pub enum BoundaryKind {
 }
 
 /// `[inlet]` / `[outlet]`. Which fields are required depends on `kind`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoundarySection {
     /// Boundary kind.
@@ -192,7 +197,7 @@ pub struct BoundarySection {
 }
 
 /// `[initial]`: the state of the line at t = 0. Profiles are in `x_m`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitialSection {
     /// Pressure, Pa.
@@ -214,7 +219,7 @@ pub struct InitialSection {
 }
 
 /// `[ambient]`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AmbientSection {
     /// Ambient temperature, K.
@@ -226,7 +231,7 @@ pub struct AmbientSection {
 }
 
 /// `[time]`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSection {
     /// End of the simulation, s.
@@ -267,7 +272,7 @@ fn default_courant() -> f64 {
 }
 
 /// One `[[stations]]` entry: a named measurement position.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Station {
     /// Name, as it appears in probe output and measured data.
@@ -277,7 +282,7 @@ pub struct Station {
 }
 
 /// `[physics]`: switches that make the verification problems expressible.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PhysicsSection {
     /// Interphase and wall mass transfer.
@@ -320,7 +325,7 @@ impl Default for PhysicsSection {
 }
 
 /// The whole case file.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Case {
     /// Optional title.

@@ -333,8 +333,9 @@ macro_rules! parameter_table {
                 lower: 0.25,
                 upper: 4.0,
                 unit: "-",
-                description: "overall scaling of the mass transfer at the wetted wall Γ_wg",
-                /// `Gwsc`: scale of the wall mass transfer Γ_wg: **the scheme multiplies Γ_wg by it**.
+                description: "overall scaling of the mass transfer at the wetted wall Γ_wg (above 1: on superheated liquid only)",
+                /// `Gwsc`: scale of the wall mass transfer Γ_wg: **the scheme multiplies Γ_wg by it**; the
+                /// part above 1 acts only on superheated liquid (see the scheme's `wall_evaporation_scale`).
                 field: wall_mass_transfer_scale,
             }
             "tauw" {
@@ -736,7 +737,8 @@ pub fn closest(name: &str) -> Option<&'static str> {
         .map(|(_, n)| n)
 }
 
-fn edit_distance(a: &str, b: &str) -> usize {
+/// Levenshtein distance between `a` and `b`, in characters.
+pub(crate) fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
     let mut prev: Vec<usize> = (0..=b.len()).collect();
     for (i, ca) in a.chars().enumerate() {

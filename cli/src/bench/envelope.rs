@@ -45,7 +45,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fluid_source;
-use crate::simulate::read_params_file;
+use crate::param_values::{apply_case_fields, read_params_file};
 
 /// The NBS subcooled case: the line, boundaries, numerics and stations every run starts from.
 const BASE_CASE: &str = include_str!("../../../examples/nbs/subcooled-4.2atm.toml");
@@ -73,7 +73,7 @@ pub struct EnvelopeArgs {
     #[arg(long)]
     json: bool,
     /// A TOML file of `name = number` parameter values applied to every run (as `cryofit simulate
-    /// --params` takes).
+    /// --params` takes; its shared case fields are set in the base case, per-experiment ones skipped).
     #[arg(long, value_name = "FILE.toml")]
     params: Option<PathBuf>,
     /// Fluids (table names), comma-separated.
@@ -267,15 +267,23 @@ struct Report {
 /// Runs `cryofit bench envelope`.
 pub fn run(args: &EnvelopeArgs) -> Result<()> {
     check_args(args)?;
-    let base = Case::from_toml(BASE_CASE, BASE_CASE_NAME)?;
+    let mut base = Case::from_toml(BASE_CASE, BASE_CASE_NAME)?;
+    let mut params = driver::case_parameters(&base).map_err(|e| anyhow!("{BASE_CASE_NAME}: {e}"))?;
+    if let Some(file) = &args.params {
+        // registry values, and the shared case fields (the apparatus) on the base case; the
+        // envelope's cases are no calibration's experiments, so per-experiment values are skipped
+        let values = read_params_file(file)?;
+        params.overlay(&values.registry()?);
+        let applied = apply_case_fields(&base, BASE_CASE_NAME, "", &[&values])?;
+        if !applied.skipped.is_empty() {
+            eprintln!("note: skipped {} (per-experiment values)", applied.skipped.join(", "));
+        }
+        base = applied.case;
+    }
     let atmosphere_pa = match &base.outlet.pressure_pa {
         Some(p) => p.at(0.0),
         None => bail!("{BASE_CASE_NAME}: the outlet has no pressure_pa"),
     };
-    let mut params = driver::case_parameters(&base).map_err(|e| anyhow!("{BASE_CASE_NAME}: {e}"))?;
-    if let Some(file) = &args.params {
-        params.overlay(&read_params_file(file)?);
-    }
     let fluids = fluid_names(&args.fluids)?;
     let tables = fluids.iter().map(|f| fluid_source::load(f)).collect::<Result<Vec<_>>>()?;
     let plans = plans(args, &base, atmosphere_pa, &fluids, &tables)?;

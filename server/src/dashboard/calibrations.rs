@@ -177,8 +177,11 @@ pub(super) async fn calibration_page(State(state): State<AppState>, Path(id): Pa
     if let Some(p) = &c.best_parameters {
         s.push_str("<h2>Best parameters</h2><table><tr><th>parameter</th><th>value</th><th>unit</th></tr>");
         for (k, v) in p {
-            let unit =
-                cryofit_solver::params::spec(k).map_or("", |s| if s.unit == "-" { "dimensionless" } else { s.unit });
+            let unit = match cryofit_calib::apparatus::case_name(k) {
+                Some(field) => Some(cryofit_solver::case::field_unit(field.path)),
+                None => cryofit_solver::params::spec(k).map(|s| s.unit),
+            };
+            let unit = unit.map_or("", |u| if u == "-" { "dimensionless" } else { u });
             let _ = write!(s, "<tr><td>{}</td><td class=\"num\">{}</td><td>{}</td></tr>", esc(k), num(*v), esc(unit));
         }
         s.push_str("</table>");

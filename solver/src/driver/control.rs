@@ -1,0 +1,228 @@
+//! Time-step control: the step a run tries next, and what an accepted or a rejected step does
+//! to the steps after it (the paper's control: reject and halve a step that changes a variable
+//! too much, grow it back when steps are easy, end the run below a minimum step).
+
+use std::collections::BTreeMap;
+
+use super::SimError;
+use crate::case::TimeSection;
+use crate::model::{Grid, State};
+use crate::scheme::{Rejection, StepReport};
+
+/// Settings of the [`StepController`]. A step's difficulty is its change ratio
+/// ([`StepReport::change_ratio`]): the largest change of a controlled variable as a fraction of
+/// the change allowed in one step. The default is the control every run uses.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepControl {
+    /// Factor on the size of a rejected step before it is tried again (0.5: halved).
+    pub rejection_factor: f64,
+    /// An accepted step whose change ratio is below this is easy.
+    pub easy_ratio: f64,
+    /// Easy steps in a row after which the step grows.
+    pub easy_steps_to_grow: u32,
+    /// Factor by which the step grows after `easy_steps_to_grow` easy steps (up to the case's
+    /// `time.max_dt_s`).
+    pub growth_factor: f64,
+    /// An accepted step whose change ratio is above this is hard: the next step is then at most
+    /// `hard_step_factor` times its size.
+    pub hard_ratio: f64,
+    /// See `hard_ratio`.
+    pub hard_step_factor: f64,
+}
+
+impl Default for StepControl {
+    fn default() -> Self {
+        Self {
+            rejection_factor: 0.5,
+            easy_ratio: 0.5,
+            easy_steps_to_grow: 3,
+            growth_factor: 1.25,
+            hard_ratio: 0.8,
+            hard_step_factor: 0.8,
+        }
+    }
+}
+
+/// The step control of one run: proposes each step from its own step size, the case's largest
+/// step, the Courant limit and the next time the run must land on; adjusts its step size by the
+/// outcome; counts the accepted and rejected steps and what limited or rejected them.
+///
+/// Its step size `dt` is what the steps are allowed to be; a step actually taken may be shorter
+/// (cut to land on an output time or by the Courant limit), which says nothing about its
+/// difficulty: growing and shrinking act on `dt`, rejections on the step taken.
+#[derive(Debug, Clone)]
+pub struct StepController {
+    control: StepControl,
+    /// The case's largest step, s.
+    max_dt: f64,
+    /// The case's smallest step, s: a rejected step below it ends the run.
+    min_dt: f64,
+    /// The case's largest material Courant number.
+    max_courant: f64,
+    /// The controller's step size, s.
+    dt: f64,
+    /// Easy steps in a row so far.
+    easy_steps: u32,
+    statistics: StepStatistics,
+}
+
+/// What the steps of a run were: their numbers, sizes and what held them down.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct StepStatistics {
+    /// Accepted steps.
+    pub(super) steps: u64,
+    /// Rejected (retried) steps.
+    pub(super) rejected: u64,
+    /// Smallest accepted step, s (infinite before the first).
+    pub(super) min_dt: f64,
+    /// Largest accepted step, s.
+    pub(super) max_dt: f64,
+    /// Why steps were rejected ("variable: reason") and how often.
+    pub(super) rejection_causes: BTreeMap<String, u64>,
+    /// The controlled variable that came closest to its limit in accepted steps, and how often.
+    pub(super) step_limited_by: BTreeMap<String, u64>,
+}
+
+impl StepController {
+    /// A controller with the settings `control` for a case's `[time]` section; its first step is
+    /// the case's `initial_dt_s` (at most `max_dt_s`).
+    pub fn new(control: StepControl, time: &TimeSection) -> Self {
+        Self {
+            control,
+            max_dt: time.max_dt_s,
+            min_dt: time.min_dt_s,
+            max_courant: time.max_courant,
+            dt: time.initial_dt_s.min(time.max_dt_s),
+            easy_steps: 0,
+            statistics: StepStatistics {
+                steps: 0,
+                rejected: 0,
+                min_dt: f64::INFINITY,
+                max_dt: 0.0,
+                rejection_causes: BTreeMap::new(),
+                step_limited_by: BTreeMap::new(),
+            },
+        }
+    }
+
+    /// Accepted steps so far.
+    pub fn steps(&self) -> u64 {
+        self.statistics.steps
+    }
+
+    /// The step to try from `s` on `grid`: the controller's step size within the case's largest
+    /// step and the Courant limit (for accuracy), ending at most at `target` (landing exactly on
+    /// it); at least the case's smallest step where `target` is already reached.
+    pub fn propose(&self, s: &State, grid: &Grid, target: f64) -> f64 {
+        let mut courant = f64::INFINITY;
+        for j in 0..=grid.n {
+            let dxj = grid.dx_junction(j);
+            let v = s.v_g[j].abs().max(s.v_l[j].abs());
+            if v > 0.0 {
+                courant = courant.min(self.max_courant * dxj / v);
+            }
+        }
+        let mut h = self.dt.min(self.max_dt).min(courant).min(target - s.time);
+        if h <= 0.0 {
+            h = (target - s.time).max(self.min_dt);
+        }
+        h
+    }
+
+    /// Books an accepted step of size `h` with its `report`: grows the step size after
+    /// `easy_steps_to_grow` easy steps in a row, shrinks it after a hard one.
+    pub fn accept(&mut self, h: f64, report: &StepReport) {
+        let c = &self.control;
+        let stats = &mut self.statistics;
+        stats.steps += 1;
+        stats.min_dt = stats.min_dt.min(h);
+        stats.max_dt = stats.max_dt.max(h);
+        if !report.limiting.is_empty() {
+            *stats.step_limited_by.entry(report.limiting.to_string()).or_default() += 1;
+        }
+        if report.change_ratio < c.easy_ratio {
+            self.easy_steps += 1;
+        } else {
+            self.easy_steps = 0;
+        }
+        if self.easy_steps >= c.easy_steps_to_grow {
+            self.dt = (self.dt * c.growth_factor).min(self.max_dt);
+            self.easy_steps = 0;
+        }
+        if report.change_ratio > c.hard_ratio {
+            self.dt = self.dt.min(h * c.hard_step_factor);
+        }
+    }
+
+    /// Books a step of size `h` from time `time_s` that the scheme rejected, and returns the
+    /// smaller step to try instead (which also becomes the step size), or
+    /// [`SimError::StepTooSmall`] when that is below the case's smallest step.
+    pub fn reject(&mut self, h: f64, rejection: Rejection, time_s: f64) -> Result<f64, SimError> {
+        let Rejection { cell, variable, value, reason } = rejection;
+        self.statistics.rejected += 1;
+        *self.statistics.rejection_causes.entry(format!("{variable}: {reason}")).or_default() += 1;
+        let h = h * self.control.rejection_factor;
+        self.dt = h;
+        self.easy_steps = 0;
+        if h < self.min_dt {
+            return Err(SimError::StepTooSmall { time_s, min_dt_s: self.min_dt, cell, variable, value, reason });
+        }
+        Ok(h)
+    }
+
+    /// The statistics of the steps taken.
+    pub(super) fn into_statistics(self) -> StepStatistics {
+        self.statistics
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn time() -> TimeSection {
+        TimeSection {
+            end_s: 10.0,
+            output_interval_s: 1.0,
+            profile_interval_s: 5.0,
+            initial_dt_s: 0.01,
+            max_dt_s: 0.1,
+            min_dt_s: 1e-4,
+            max_courant: 1.0,
+            max_steps: None,
+            max_wall_s: None,
+        }
+    }
+
+    fn report(change_ratio: f64) -> StepReport {
+        StepReport { change_ratio, limiting: "pressure", ..StepReport::default() }
+    }
+
+    #[test]
+    fn grows_after_three_easy_steps_and_shrinks_after_a_hard_one() {
+        let mut c = StepController::new(StepControl::default(), &time());
+        for _ in 0..2 {
+            c.accept(0.01, &report(0.1));
+            assert_eq!(c.dt, 0.01);
+        }
+        c.accept(0.01, &report(0.1));
+        assert_eq!(c.dt, 0.01 * 1.25);
+        c.accept(0.004, &report(0.9));
+        assert_eq!(c.dt, 0.004 * 0.8);
+        assert_eq!(c.steps(), 4);
+        let stats = c.into_statistics();
+        assert_eq!((stats.min_dt, stats.max_dt), (0.004, 0.01));
+        assert_eq!(stats.step_limited_by["pressure"], 4);
+    }
+
+    #[test]
+    fn halves_a_rejected_step_until_the_minimum() {
+        let mut c = StepController::new(StepControl::default(), &time());
+        let why = Rejection { cell: 3, variable: "pressure", value: 1.0, reason: "changed by more than 25 %" };
+        assert_eq!(c.reject(0.01, why.clone(), 2.0), Ok(0.005));
+        assert_eq!(c.dt, 0.005);
+        let err = c.reject(1.5e-4, why, 2.0).unwrap_err();
+        assert!(matches!(err, SimError::StepTooSmall { cell: 3, time_s: 2.0, .. }), "{err}");
+        assert_eq!(c.into_statistics().rejection_causes["pressure: changed by more than 25 %"], 2);
+    }
+}

@@ -1,0 +1,468 @@
+//! The driver: initial state, time-step control, probes, profiles and the run summary.
+//!
+//! [`run`] sets a case up, then loops: the run's observers see the state (`observers.rs`: probes,
+//! profiles, chilldown and quench arrivals, budgets), the [`StepController`] proposes a step
+//! (`control.rs`, its settings in [`StepControl`]), the scheme takes it, the controller accepts
+//! or rejects it, and the observers see the accepted step; the output is assembled from them.
+
+mod control;
+mod observers;
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::case::{BoundaryKind, Case, TimeSection};
+use crate::fluids::{FluidError, FluidTable, Phase};
+use crate::model::{BoundaryState, Grid, State, boundary_state, clamp_to_phase};
+use crate::params::ParameterSet;
+use crate::scheme::{Physics, Scheme, StepReport};
+
+pub use control::{StepControl, StepController};
+use observers::{EnergyBudget, FrontArrivals, OutputClock, ProbeRecorder, ProfileRecorder, RunObserver, Station};
+
+/// Why a run ended without reaching its end time.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// The time step fell below the minimum.
+    #[error(
+        "time step fell below {min_dt_s:e} s at t = {time_s:.6} s: cell {cell}, {variable} = {value}: {reason} (try a smaller time.min_dt_s, a finer grid, or check the boundary conditions)"
+    )]
+    StepTooSmall {
+        /// Simulated time, s.
+        time_s: f64,
+        /// The minimum step, s.
+        min_dt_s: f64,
+        /// Cell or junction index.
+        cell: usize,
+        /// Variable that failed.
+        variable: &'static str,
+        /// Its value.
+        value: f64,
+        /// Why.
+        reason: &'static str,
+    },
+    /// `time.max_steps` reached.
+    #[error("stopped after time.max_steps = {steps} steps at t = {time_s:.6} s")]
+    MaxSteps {
+        /// Steps taken.
+        steps: u64,
+        /// Simulated time, s.
+        time_s: f64,
+    },
+    /// `time.max_wall_s` reached.
+    #[error("stopped after time.max_wall_s = {wall_s} s of computing at t = {time_s:.6} s")]
+    MaxWall {
+        /// Limit, s.
+        wall_s: f64,
+        /// Simulated time, s.
+        time_s: f64,
+    },
+    /// A property query failed while setting up.
+    #[error("{0}")]
+    Fluid(#[from] FluidError),
+    /// A parameter name or value is not acceptable.
+    #[error("{0}")]
+    Parameter(String),
+    /// The initial state cannot be built.
+    #[error("initial state: {0}")]
+    Initial(String),
+}
+
+/// One observation: `time_s,station,x_m,quantity,value` (DESIGN.md §3.2).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Observation {
+    /// Time, s.
+    pub time_s: f64,
+    /// Station name.
+    pub station: String,
+    /// Station position, m.
+    pub x_m: f64,
+    /// Quantity name.
+    pub quantity: &'static str,
+    /// Value, SI.
+    pub value: f64,
+}
+
+/// One profile value: `time_s,x_m,quantity,value`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ProfilePoint {
+    /// Time, s.
+    pub time_s: f64,
+    /// Position (cell centre, or junction for velocities), m.
+    pub x_m: f64,
+    /// Quantity name.
+    pub quantity: &'static str,
+    /// Value, SI.
+    pub value: f64,
+}
+
+/// Run statistics and derived results (`summary.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// Accepted steps.
+    pub steps: u64,
+    /// Rejected (retried) steps.
+    pub rejected_steps: u64,
+    /// Wall-clock seconds of the integration itself.
+    pub wall_time_s: f64,
+    /// Simulated time reached, s.
+    pub simulated_time_s: f64,
+    /// Smallest accepted step, s.
+    pub min_dt_s: f64,
+    /// Largest accepted step, s.
+    pub max_dt_s: f64,
+    /// |Δ mass − (in − out)| / max(initial mass, throughput).
+    pub mass_balance_error: f64,
+    /// Physical total-energy balance (fluid internal + kinetic + potential energy and the wall's
+    /// energy against the boundary fluxes and the ambient heat), relative: |residual| divided by
+    /// the heat the wall gave up to the fluid (by the mechanical energy that moved where no
+    /// heat did, in cases without wall heat). Every adjustment the step makes outside the
+    /// balance equations is part of the residual.
+    pub energy_balance_error: f64,
+    /// The physical total-energy residual itself, J (signed: energy created is positive).
+    pub energy_balance_residual_j: f64,
+    /// Heat the wall gave up to the fluid over the run, J (the denominator of
+    /// `energy_balance_error`).
+    pub wall_heat_j: f64,
+    /// The scheme's own discrete energy budget residual, relative.
+    pub scheme_energy_error: f64,
+    /// Largest |volume error| seen.
+    pub max_volume_error: f64,
+    /// Energy added or removed by state adjustments outside the balance equations over the
+    /// run (trace-phase resets and clamps), J: the sum of their magnitudes, so that additions
+    /// and removals do not cancel. The net of them is part of `energy_balance_residual_j`.
+    pub trace_adjustment_j: f64,
+    /// Kinetic energy the momentum equations turned into heat over the run, J: wall friction, form
+    /// losses, interphase drag and the donor-cell convection's numerical dissipation
+    /// (`scheme::booked_heat`).
+    pub dissipation_j: f64,
+    /// Why steps were rejected: "variable: reason" and how often (to see what makes a run slow).
+    pub rejection_causes: BTreeMap<String, u64>,
+    /// Which controlled variable came closest to its limit in accepted steps, and how often.
+    pub step_limited_by: BTreeMap<String, u64>,
+    /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
+    pub chilldown_time_s: BTreeMap<String, Option<f64>>,
+    /// First time the wall falls below 150 K, per station.
+    pub quench_arrival_s: BTreeMap<String, Option<f64>>,
+    /// Inlet liquid temperature used for the chilldown criterion, K.
+    pub inlet_liquid_temperature_k: f64,
+}
+
+/// Everything a run produces.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Output {
+    /// Probe time series.
+    pub probes: Vec<Observation>,
+    /// Whole-line profiles.
+    pub profiles: Vec<ProfilePoint>,
+    /// Statistics and derived results.
+    pub summary: Summary,
+    /// The final state.
+    pub final_state: State,
+}
+
+/// Progress of a run, for a progress bar.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// Simulated time, s.
+    pub time_s: f64,
+    /// End time, s.
+    pub end_s: f64,
+    /// Steps so far.
+    pub steps: u64,
+}
+
+/// The vapour's c_p/R near the ideal-gas limit, at the normal boiling temperature and the
+/// table's lowest pressure (Theler's k_g; 3.5 for nitrogen), or NaN where the table holds no
+/// such state.
+pub fn ideal_cp_over_r(fluid: &FluidTable) -> f64 {
+    let c = fluid.constants();
+    let Ok(sat) = fluid.saturation(101_325.0) else { return f64::NAN };
+    fluid.phase_props(Phase::Gas, c.p_min_pa, sat.t_sat).map(|g| g.cp / c.gas_constant_j_kg_k).unwrap_or(f64::NAN)
+}
+
+/// Physics settings of a case with the given parameter values (already merged with the case's
+/// `[parameters]` by the caller, see [`case_parameters`]).
+pub fn physics_of(case: &Case, params: &ParameterSet, fluid: &FluidTable) -> Physics {
+    let p = &case.physics;
+    Physics {
+        cryo: crate::cryo::CryoParams::from_set(params)
+            .with_fluid(fluid.constants())
+            .with_ideal_cp_over_r(ideal_cp_over_r(fluid)),
+        correlations: p.correlations.parse().unwrap_or(crate::cryo::CorrelationSet::Paper),
+        interphase_htc_w_m3k: params.get("hi_vol"),
+        phase_change: p.phase_change,
+        wall_heat_transfer: p.wall_heat_transfer,
+        interphase_heat_transfer: p.interphase_heat_transfer,
+        interphase_drag: p.interphase_drag,
+        wall_friction: p.wall_friction,
+        gravity: p.gravity,
+        virtual_mass: p.virtual_mass,
+        fixed_wall_htc: p.wall_htc_w_m2k,
+        ambient_temperature_k: case.ambient.temperature_k,
+        ambient_htc_w_m2k: case.ambient.heat_transfer_coefficient_w_m2k,
+    }
+}
+
+/// The case's `[parameters]` as a checked parameter set (errors name the case's field).
+pub fn case_parameters(case: &Case) -> Result<ParameterSet, SimError> {
+    let mut set = ParameterSet::new();
+    for (name, value) in &case.parameters {
+        set.set(name, *value).map_err(|e| SimError::Parameter(format!("parameters.{name}: {e}")))?;
+    }
+    Ok(set)
+}
+
+/// The state at t = 0 from the case's `[initial]` section.
+pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<State, SimError> {
+    let n = grid.n;
+    let ini = &case.initial;
+    let mut s = State {
+        time: 0.0,
+        p: vec![0.0; n],
+        alpha: vec![0.0; n],
+        t_g: vec![0.0; n],
+        t_l: vec![0.0; n],
+        m_g: vec![0.0; n],
+        m_l: vec![0.0; n],
+        e_g: vec![0.0; n],
+        e_l: vec![0.0; n],
+        gas: Vec::with_capacity(n),
+        liquid: Vec::with_capacity(n),
+        volume_error: vec![0.0; n],
+        v_g: grid.x_junction.iter().map(|&x| ini.gas_velocity_m_s.at(x)).collect(),
+        v_l: grid.x_junction.iter().map(|&x| ini.liquid_velocity_m_s.at(x)).collect(),
+        t_w: vec![0.0; n],
+        e_w: vec![0.0; n],
+        wall_heat_flux: vec![0.0; n],
+        wetted: vec![0.0; n],
+        sat: Vec::with_capacity(n),
+    };
+    for i in 0..n {
+        let x = grid.x_cell[i];
+        let p = ini.pressure_pa.at(x);
+        let a = ini.void_fraction.at(x);
+        let tg_req = ini.gas_temperature_k.at(x);
+        let tl_req = ini.liquid_temperature_k.as_ref().map_or(tg_req, |t| t.at(x));
+        // a phase that is present must be representable as given; an absent one takes the
+        // nearest representable temperature
+        let tg = if a > 0.0 { tg_req } else { clamp_to_phase(fluid, Phase::Gas, p, tg_req) };
+        let tl = if a < 1.0 && ini.liquid_temperature_k.is_some() {
+            tl_req
+        } else {
+            clamp_to_phase(fluid, Phase::Liquid, p, tl_req)
+        };
+        let gp = fluid.phase_props(Phase::Gas, p, tg).map_err(|e| SimError::Initial(format!("at x = {x} m: {e}")))?;
+        let lp =
+            fluid.phase_props(Phase::Liquid, p, tl).map_err(|e| SimError::Initial(format!("at x = {x} m: {e}")))?;
+        s.p[i] = p;
+        s.alpha[i] = a;
+        s.t_g[i] = tg;
+        s.t_l[i] = tl;
+        s.m_g[i] = a * gp.rho;
+        s.m_l[i] = (1.0 - a) * lp.rho;
+        s.e_g[i] = s.m_g[i] * gp.u;
+        s.e_l[i] = s.m_l[i] * lp.u;
+        s.gas.push(gp);
+        s.liquid.push(lp);
+        let tw = ini.wall_temperature_k.at(x);
+        s.t_w[i] = tw;
+        s.e_w[i] = grid.material.table().energy(tw);
+        s.sat.push(crate::scheme::saturation_or_none(fluid, p));
+        // liquid present at the start wets the wall
+        s.wetted[i] = if a < 1.0 { 1.0 } else { 0.0 };
+    }
+    Ok(s)
+}
+
+/// The temperature a thermocouple in the stream reads: the observation function g(x) of the
+/// paper's state-space model. Defined as the phasic temperatures blended by volume fraction,
+/// T_f = (1 − α) T_l + α T_g: a probe in liquid-filled flow reads the liquid, in vapour the
+/// vapour, and in between the phase that wets it in proportion to its share of the section.
+pub fn fluid_temperature(alpha: f64, t_g: f64, t_l: f64) -> f64 {
+    (1.0 - alpha) * t_l + alpha * t_g
+}
+
+/// An output time (and the end time) counts as reached once the run is within this fraction of
+/// the end time of it.
+const OUTPUT_TIME_TOLERANCE: f64 = 1e-9;
+
+/// [`run`] calls its progress callback after every this many accepted steps.
+const PROGRESS_INTERVAL_STEPS: u64 = 64;
+
+/// Runs a case to its end time with parameter values `params` (defaults for the rest).
+///
+/// Sets up the grid, the initial state, the scheme, a [`StepController`] with the default
+/// [`StepControl`] and the run's observers (probes, profiles, chilldown and quench arrivals, the
+/// budgets); then, until the end time: every observer sees the state, the controller proposes a
+/// step, the scheme takes it (smaller after each rejection: `advance`) and every observer sees
+/// the accepted step. The output is assembled from the observers and the controller's
+/// statistics.
+pub fn run(
+    case: &Case,
+    fluid: &FluidTable,
+    params: &ParameterSet,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<Output, SimError> {
+    let grid = Grid::from_case(case);
+    let mut s = initial_state(case, fluid, &grid)?;
+    let physics = physics_of(case, params, fluid);
+    let mut scheme = Scheme::new(fluid, grid.clone(), physics);
+    let t = &case.time;
+    let end = t.end_s;
+    let clock = Instant::now();
+    let boundaries = Boundaries { case, fluid, p_guess: s.p[0] };
+    let inlet_tl = boundary_state(&case.inlet, 0.0, fluid, boundaries.p_guess)?.t_l;
+    let stations: Vec<Station> = case.stations.iter().map(|st| Station::new(&grid, &st.name, st.x_m)).collect();
+    let eps = OUTPUT_TIME_TOLERANCE * end;
+    let mut probes = ProbeRecorder::new(&grid, &stations, OutputClock::new(t.output_interval_s, eps));
+    let mut profiles = ProfileRecorder::new(&grid, OutputClock::new(t.profile_interval_s, eps));
+    let mut arrivals = FrontArrivals::new(&stations, inlet_tl);
+    let mut budget = EnergyBudget::new(&s, &grid, case.physics.gravity);
+    let mut controller = StepController::new(StepControl::default(), t);
+    let mut observers: [&mut dyn RunObserver; 4] = [&mut probes, &mut profiles, &mut arrivals, &mut budget];
+    loop {
+        observers.iter_mut().for_each(|o| o.on_state(&s));
+        if s.time >= end - eps {
+            break;
+        }
+        check_limits(t, controller.steps(), &clock, s.time)?;
+        let target = observers.iter().map(|o| o.next_output()).fold(f64::INFINITY, f64::min).min(end);
+        let (next, h, report) = advance(&mut scheme, &mut controller, &s, target, &boundaries)?;
+        observers.iter_mut().for_each(|o| o.on_step(h, &report));
+        s = next;
+        // a step that lands on an output time (or the end) to within rounding lands on it
+        // exactly: the outputs carry the times the case asked for, not 7.999999999999997 s
+        if (s.time - target).abs() <= eps {
+            s.time = target;
+        }
+        if controller.steps().is_multiple_of(PROGRESS_INTERVAL_STEPS) {
+            progress(Progress { time_s: s.time, end_s: end, steps: controller.steps() });
+        }
+    }
+    let wall_time_s = clock.elapsed().as_secs_f64();
+    let steps = controller.into_statistics();
+    let balances = budget.finish(&s);
+    Ok(Output {
+        probes: probes.into_probes(),
+        profiles: profiles.into_profiles(),
+        summary: Summary {
+            steps: steps.steps,
+            rejected_steps: steps.rejected,
+            wall_time_s,
+            simulated_time_s: s.time,
+            min_dt_s: if steps.min_dt.is_finite() { steps.min_dt } else { 0.0 },
+            max_dt_s: steps.max_dt,
+            mass_balance_error: balances.mass_balance_error,
+            energy_balance_error: balances.energy_balance_error,
+            energy_balance_residual_j: balances.energy_balance_residual_j,
+            wall_heat_j: balances.wall_heat_j,
+            scheme_energy_error: balances.scheme_energy_error,
+            max_volume_error: balances.max_volume_error,
+            trace_adjustment_j: balances.trace_adjustment_j,
+            dissipation_j: balances.dissipation_j,
+            rejection_causes: steps.rejection_causes,
+            step_limited_by: steps.step_limited_by,
+            chilldown_time_s: arrivals.chilldown,
+            quench_arrival_s: arrivals.quench,
+            inlet_liquid_temperature_k: arrivals.inlet_liquid_temperature_k,
+        },
+        final_state: s,
+    })
+}
+
+/// One accepted step from `s`: the step the controller proposes towards `target`, tried again
+/// at the smaller size the controller gives after each rejection. Returns the new state, the
+/// step taken and the scheme's report.
+fn advance(
+    scheme: &mut Scheme,
+    controller: &mut StepController,
+    s: &State,
+    target: f64,
+    boundaries: &Boundaries,
+) -> Result<(State, f64, StepReport), SimError> {
+    let mut h = controller.propose(s, &scheme.grid, target);
+    let b0 = boundaries.at(s.time)?;
+    loop {
+        let b1 = boundaries.at(s.time + h)?;
+        match scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]]) {
+            Ok((next, report)) => {
+                controller.accept(h, &report);
+                return Ok((next, h, report));
+            }
+            Err(rejection) => h = controller.reject(h, rejection, s.time)?,
+        }
+    }
+}
+
+/// The case's limits on the number of steps (`time.max_steps`) and on computing time
+/// (`time.max_wall_s`): an error once one is reached.
+fn check_limits(t: &TimeSection, steps: u64, clock: &Instant, time_s: f64) -> Result<(), SimError> {
+    if let Some(ms) = t.max_steps
+        && steps >= ms
+    {
+        return Err(SimError::MaxSteps { steps, time_s });
+    }
+    if let Some(mw) = t.max_wall_s
+        && clock.elapsed().as_secs_f64() > mw
+    {
+        return Err(SimError::MaxWall { wall_s: mw, time_s });
+    }
+    Ok(())
+}
+
+/// A case's boundary states at any time; `p_guess` (the initial pressure of the first cell)
+/// stands for a pressure the boundary does not set.
+#[derive(Debug, Clone, Copy)]
+struct Boundaries<'a> {
+    case: &'a Case,
+    fluid: &'a FluidTable,
+    p_guess: f64,
+}
+
+impl Boundaries<'_> {
+    /// The inlet and outlet states at `time`.
+    fn at(&self, time: f64) -> Result<[BoundaryState; 2], SimError> {
+        let (case, fluid, p_guess) = (self.case, self.fluid, self.p_guess);
+        Ok([
+            boundary_state(&case.inlet, time, fluid, p_guess)?,
+            boundary_state(&case.outlet, time, fluid, s_last_p(&case.outlet, p_guess))?,
+        ])
+    }
+}
+
+fn s_last_p(b: &crate::case::BoundarySection, fallback: f64) -> f64 {
+    match (&b.kind, &b.pressure_pa) {
+        (BoundaryKind::Pressure | BoundaryKind::Reservoir, Some(p)) => p.at(0.0),
+        _ => fallback,
+    }
+}
+
+/// Total fluid mass on the line, kg.
+pub fn total_mass(s: &State, g: &Grid) -> f64 {
+    (0..g.n).map(|i| (s.m_g[i] + s.m_l[i]) * g.volume[i]).sum()
+}
+
+/// Chilldown time at a station: the first time its wall falls below the inlet liquid temperature
+/// plus this margin, K (DESIGN.md §5).
+pub const CHILLDOWN_MARGIN_K: f64 = 15.0;
+
+/// The quantities written for every station, in order (DESIGN.md §3.2).
+pub const PROBE_QUANTITIES: [&str; 10] = [
+    "wall_temperature_k",
+    "fluid_temperature_k",
+    "pressure_pa",
+    "void_fraction",
+    "gas_temperature_k",
+    "liquid_temperature_k",
+    "gas_velocity_m_s",
+    "liquid_velocity_m_s",
+    "wall_heat_flux_w_m2",
+    "mass_flow_kg_s",
+];
+
+/// Wall temperature below which the quench front has reached a station, K (DESIGN.md §5).
+pub const QUENCH_TEMPERATURE_K: f64 = 150.0;

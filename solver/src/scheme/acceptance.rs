@@ -1,0 +1,119 @@
+//! The acceptance checks of a step: every value finite, no controlled variable changed by more
+//! than its limit, no volume error grown above its limit.
+
+use super::{
+    CONTROLLED_FRACTION, MAX_RELATIVE_CHANGE, MAX_VOLUME_ERROR, Rejection, SCALE_PRESSURE_PA, SCALE_TEMPERATURE_K,
+    SCALE_VELOCITY_M_S, SCALE_VOID, Scheme, StepInput, VOLUME_ERROR_PRESSURE_FRACTION, Work,
+};
+use crate::model::State;
+
+impl Scheme<'_> {
+    /// Step control: the largest change of a controlled variable over the step as a fraction
+    /// of its allowed change (`MAX_RELATIVE_CHANGE` of the larger of its old value and its
+    /// scale), and the variable; a step with a fraction above 1 is rejected, naming it.
+    pub(super) fn change_control(&self, st: &StepInput, next: &State) -> Result<ChangeRatio, Rejection> {
+        let s = st.s;
+        let mut change = ChangeRatio { ratio: 0.0, worst: Rejection { cell: 0, variable: "", value: 0.0, reason: "" } };
+        // a phase's temperature and velocity are controlled only where it fills at least
+        // CONTROLLED_FRACTION of the volume (a fixed fraction, not `blend_xmax`: the step sizes,
+        // and through them the results, would otherwise move with a blending threshold)
+        let xmax = CONTROLLED_FRACTION;
+        for i in 0..st.n {
+            change.check(i, "pressure", s.p[i], next.p[i], SCALE_PRESSURE_PA);
+            change.check(i, "void fraction", s.alpha[i], next.alpha[i], SCALE_VOID);
+            if s.alpha[i].min(next.alpha[i]) > xmax {
+                change.check(i, "gas temperature", s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K);
+            }
+            if (1.0 - s.alpha[i]).min(1.0 - next.alpha[i]) > xmax {
+                change.check(i, "liquid temperature", s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K);
+            }
+            change.check(i, "wall temperature", s.t_w[i], next.t_w[i], SCALE_TEMPERATURE_K);
+        }
+        for j in 0..st.n + 1 {
+            let (fg, fl) = self.junction_min_fractions(s, j);
+            let (ag, al) = self.junction_alpha(s, j, st.inlet0, st.outlet0);
+            let (fg, fl) = (fg.min(ag), fl.min(al));
+            if fg > xmax {
+                change.check(j, "gas velocity", s.v_g[j], next.v_g[j], SCALE_VELOCITY_M_S);
+            }
+            if fl > xmax {
+                change.check(j, "liquid velocity", s.v_l[j], next.v_l[j], SCALE_VELOCITY_M_S);
+            }
+        }
+        if change.ratio > 1.0 {
+            return Err(change.worst);
+        }
+        Ok(change)
+    }
+}
+
+/// No NaN escapes a step: anything non-finite in the new state rejects it, naming where.
+pub(super) fn all_finite(next: &State) -> Result<(), Rejection> {
+    let finite = |v: &[f64]| v.iter().position(|x| !x.is_finite());
+    for (name, values) in [
+        ("gas velocity", &next.v_g),
+        ("liquid velocity", &next.v_l),
+        ("wall temperature", &next.t_w),
+        ("gas energy", &next.e_g),
+        ("liquid energy", &next.e_l),
+        ("void fraction", &next.alpha),
+    ] {
+        if let Some(i) = finite(values) {
+            return Err(Rejection { cell: i, variable: name, value: values[i], reason: "not a finite number" });
+        }
+    }
+    Ok(())
+}
+
+/// Rejects a step that leaves a cell with a volume error above the limit and larger than it
+/// had (an error inherited from earlier steps shrinks under the next pressure solves; a smaller
+/// step cannot remove it), naming the cell with the largest such error; not one that a trace
+/// reset made (the reset is not a function of the step size).
+///
+/// In a cell full of liquid even a small volume error is a large pressure correction in the
+/// next step (liquid is stiff): the error is also limited by the pressure change it implies,
+/// |e| / κ with κ the cell's volume compressibility.
+pub(super) fn volume_error_check(st: &StepInput, w: &Work, next: &State) -> Result<(), Rejection> {
+    let s = st.s;
+    let too_big = |i: usize| {
+        let (gp, lp, a) = (&next.gas[i], &next.liquid[i], next.alpha[i]);
+        let kappa = a * gp.drho_dp / gp.rho + (1.0 - a) * lp.drho_dp / lp.rho;
+        let e = next.volume_error[i].abs();
+        e > MAX_VOLUME_ERROR || e > VOLUME_ERROR_PRESSURE_FRACTION * next.p[i].max(SCALE_PRESSURE_PA) * kappa
+    };
+    let grew = |i: usize| !w.reset[i] && too_big(i) && next.volume_error[i].abs() > s.volume_error[i].abs();
+    if let Some(i) = (0..st.n)
+        .filter(|&i| grew(i))
+        .max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs()))
+    {
+        return Err(Rejection {
+            cell: i,
+            variable: "volume error",
+            value: next.volume_error[i],
+            reason: "phase volumes do not fill the cell",
+        });
+    }
+    Ok(())
+}
+
+/// The largest change of a controlled variable over a step as a fraction of its allowed
+/// change, and the variable ([`Scheme::change_control`]).
+#[derive(Debug, Clone)]
+pub(super) struct ChangeRatio {
+    /// The largest fraction so far (infinite for a change that is not a number).
+    pub(super) ratio: f64,
+    /// Where it is, as the rejection it makes when above 1.
+    pub(super) worst: Rejection,
+}
+
+impl ChangeRatio {
+    /// Takes in the change of `variable` at `cell` from `old` to `new`, measured against
+    /// `MAX_RELATIVE_CHANGE` of the larger of |old| and `scale`.
+    fn check(&mut self, cell: usize, variable: &'static str, old: f64, new: f64, scale: f64) {
+        let r = (new - old).abs() / (MAX_RELATIVE_CHANGE * old.abs().max(scale));
+        if r.is_nan() || r > self.ratio {
+            self.ratio = if r.is_finite() { r } else { f64::INFINITY };
+            self.worst = Rejection { cell, variable, value: new, reason: "changed by more than 25 %" };
+        }
+    }
+}

@@ -1,0 +1,528 @@
+//! One time step of the nearly-implicit two-fluid scheme.
+//!
+//! The step follows the RELAP5-3D nearly-implicit method as the paper describes it (Sec.
+//! "Algorithm"), in two steps:
+//!
+//! **Step 1.**
+//! (a) *Provisional velocities*: the phasic momentum equations at every junction with implicit
+//! convection (donor-cell v ∂v/∂x, linearised about the old velocity), implicit wall friction,
+//! interphase drag (Newton-linearised in the relative velocity where it grows faster than
+//! linearly), virtual mass (its time-derivative term) and form losses, with the old
+//! pressure gradient: a block-tridiagonal system with 2×2 blocks over the junctions.
+//! (b) *Velocity–pressure coupling*: the new velocity of a junction is its provisional velocity
+//! plus a correction linear in the change of the pressure difference across it, through the
+//! inverse of the junction's own 2×2 block: v = ṽ + w (δp_L − δp_R).
+//! (c) *Pressure*: each cell's expanded (linearised) gas mass, liquid mass, gas energy and liquid
+//! energy equations in the unknowns (δp, δα, δT_g, δT_l) — with interphase heat and mass
+//! transfer and the wall heat linearised implicitly in pressure and phasic temperatures, and the
+//! lumped wall temperature eliminated locally — are solved as a 4×4 system in terms of the
+//! neighbouring pressure changes; the first row gives a tridiagonal pressure equation.
+//! (d) Back-substitution gives the new velocities, provisional void fraction and temperatures,
+//! and provisional interphase and wall heat and mass transfer.
+//!
+//! **Step 2.** The unexpanded (conservative) phasic mass and energy equations with the new
+//! velocities, new-time donor-cell fluxes and the provisional sources: four independent
+//! tridiagonal systems. Mass is conserved to round-off. The wall energy changes by exactly the
+//! heat the fluid received. The state then follows from the conserved masses and energies at the
+//! new pressure; the mismatch between the two phases' volumes and the cell volume (the volume
+//! error) is carried into the next step's pressure equation, which drives it back to zero.
+//!
+//! Primary thermodynamic variables are pressure and phasic temperatures (see
+//! [`crate::fluids`]); the primary conserved variables are the phasic masses and internal
+//! energies per unit volume.
+//!
+//! # Phases
+//!
+//! [`Scheme::step`] runs these methods in order, each reading and writing the scheme's reusable
+//! work arrays (`Work`); the first that fails rejects the step:
+//!
+//! | phase | file | what it does |
+//! | --- | --- | --- |
+//! | `old_time_sources` | `sources.rs` | linearised interphase and wall sources at the old state |
+//! | `momentum_predictor` | `momentum.rs` | step 1a: the 2×2 block-tridiagonal momentum system |
+//! | `pressure_weights` | `momentum.rs` | step 1b: each junction's velocity–pressure weights |
+//! | `provisional_velocities` | `momentum.rs` | the momentum solve; the heat estimate of the step |
+//! | `pressure_equation` | `pressure.rs` | step 1c: per-cell 4×4 systems → tridiagonal pressure rows |
+//! | `pressure_solve` | `pressure.rs` | step 1d: pressure solve and back-substitution |
+//! | `velocity_update` | `pressure.rs` | the new velocities |
+//! | `provisional_sources` | `sources.rs` | sources at the provisional state, phase change limited |
+//! | `mass_update` | `conservative.rs` | step 2: conservative phasic masses |
+//! | `dissipated_heat` | `conservative.rs` | the momentum forces' heat with the new velocities |
+//! | `phase_volume_changes` | `conservative.rs` | each phase's volume change (its p dV work) |
+//! | `work_consistency` | `conservative.rs` | pressure work the flow work did not book |
+//! | `energy_update` | `conservative.rs` | step 2: conservative phasic energies |
+//! | `wall_update` | `conservative.rs` | the wall's energy and temperature, the heat budgets |
+//! | `state_recovery` | `recovery.rs` | pressure, temperatures and void fraction from the conserved variables |
+//! | `total_energy_flux` | `balance.rs` | the boundary total-energy flux of the budget |
+//! | `all_finite`, `change_control`, `volume_error_check` | `acceptance.rs` | the acceptance checks |
+
+// Index loops over cells and junctions mirror the discrete equations (i, j ± 1) one to one.
+#![allow(clippy::needless_range_loop)]
+
+mod acceptance;
+mod balance;
+mod conservative;
+mod momentum;
+mod pressure;
+mod recovery;
+mod sources;
+
+use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
+
+use crate::case::BoundaryKind;
+use crate::cryo;
+use crate::fluids::{FluidTable, Saturation};
+use crate::model::{BoundaryState, Grid, State};
+
+use acceptance::{all_finite, volume_error_check};
+pub use balance::StepBudget;
+use momentum::JunctionWork;
+use sources::Sources;
+
+/// Physics switches and the constants of the basic closures.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Physics {
+    /// Interphase and wall mass transfer.
+    pub phase_change: bool,
+    /// Wall–fluid heat transfer.
+    pub wall_heat_transfer: bool,
+    /// Heat transfer between the phases.
+    pub interphase_heat_transfer: bool,
+    /// Interfacial drag.
+    pub interphase_drag: bool,
+    /// Wall friction.
+    pub wall_friction: bool,
+    /// Gravity.
+    pub gravity: bool,
+    /// Virtual mass.
+    pub virtual_mass: bool,
+    /// Fixed wall heat transfer coefficient, W/(m² K), instead of correlations.
+    pub fixed_wall_htc: Option<f64>,
+    /// Volumetric interphase heat transfer coefficient scale, W/(m³ K), times α(1 − α).
+    pub interphase_htc_w_m3k: f64,
+    /// Ambient temperature, K.
+    pub ambient_temperature_k: f64,
+    /// Ambient heat transfer coefficient on the outer wall, W/(m² K).
+    pub ambient_htc_w_m2k: f64,
+    /// The cryogenic closure constants (from the parameter registry).
+    pub cryo: cryo::CryoParams,
+    /// Which film-boiling / rewet correlation set.
+    pub correlations: cryo::CorrelationSet,
+}
+
+impl Default for Physics {
+    fn default() -> Self {
+        Self {
+            phase_change: true,
+            wall_heat_transfer: true,
+            interphase_heat_transfer: true,
+            interphase_drag: true,
+            wall_friction: true,
+            gravity: true,
+            virtual_mass: true,
+            fixed_wall_htc: None,
+            interphase_htc_w_m3k: 1.0e5,
+            ambient_temperature_k: 290.0,
+            ambient_htc_w_m2k: 0.0,
+            cryo: cryo::CryoParams::default(),
+            correlations: cryo::CorrelationSet::Paper,
+        }
+    }
+}
+
+/// Why a step was rejected (the driver halves the time step and retries).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejection {
+    /// Cell (or junction) index.
+    pub cell: usize,
+    /// Which variable.
+    pub variable: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// Why.
+    pub reason: &'static str,
+}
+
+/// What a step produced besides the new state.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepReport {
+    /// Largest change of a controlled variable as a fraction of its allowed change (≤ 1).
+    pub change_ratio: f64,
+    /// Largest |volume error| over the cells.
+    pub max_volume_error: f64,
+    /// The controlled variable that came closest to its limit (what holds the step down).
+    pub limiting: &'static str,
+    /// Cell (or junction, for a velocity) of [`StepReport::limiting`].
+    pub limiting_index: usize,
+    /// Budget terms.
+    pub budget: StepBudget,
+}
+
+/// Largest allowed relative change per step (the paper's 25 %).
+pub const MAX_RELATIVE_CHANGE: f64 = 0.25;
+
+/// Scales below which a change is measured against the scale instead of the value, so that
+/// quantities near zero do not stall the step control.
+pub const SCALE_PRESSURE_PA: f64 = 2.0e4;
+
+/// Void-fraction scale.
+pub const SCALE_VOID: f64 = 0.2;
+
+/// Temperature scale, K.
+pub const SCALE_TEMPERATURE_K: f64 = 20.0;
+
+/// Velocity scale, m/s: a velocity may change by 25 % of max(|v|, 10 m/s) in a step. Decision:
+/// near a quench front the slow phase velocities (a few m/s) flicker by tens of cm/s from step
+/// to step while the vapour leaves the line at 100–200 m/s; a 2 m/s floor held the NBS runs to
+/// millisecond steps for no change in the result (chilldown times within 3 s at 2 and 10 m/s).
+pub const SCALE_VELOCITY_M_S: f64 = 10.0;
+
+/// Relaxation time with which a disappearing phase is pulled to the velocity and temperature of
+/// the continuous one, s. A time constant rather than a multiple of 1/Δt, so that the pull does
+/// not change abruptly with the step size (the step control measures changes per step).
+pub const BLEND_RELAXATION_S: f64 = 1e-3;
+
+/// Volume fraction below which a phase whose energy has left its property table is reset to
+/// the other phase's temperature (see the state recovery in [`Scheme::step`]).
+pub const TRACE_RESET_FRACTION: f64 = 0.1;
+
+/// Largest pressure correction (as a fraction of the pressure) that a volume error left by a
+/// step may imply for the next one.
+pub const VOLUME_ERROR_PRESSURE_FRACTION: f64 = 0.02;
+
+/// Volume fraction above which a phase's temperature and velocity enter the step control.
+pub const CONTROLLED_FRACTION: f64 = 1e-2;
+
+/// Largest volume error accepted after a step.
+pub const MAX_VOLUME_ERROR: f64 = 2e-3;
+
+/// Mass fraction below which a phase counts as absent in a cell: its energy equation is replaced
+/// and it takes no heat. (Donor-cell fluxes spread vanishing amounts, down to denormal numbers,
+/// which must not reach the closures.)
+pub const PRESENT_MASS_FRACTION: f64 = 1e-12;
+
+/// The nearly-implicit scheme bound to a fluid, a grid and physics.
+#[derive(Debug, Clone)]
+pub struct Scheme<'a> {
+    /// Property table.
+    pub fluid: &'a FluidTable,
+    /// Geometry.
+    pub grid: Grid,
+    /// Switches and closure constants.
+    pub physics: Physics,
+    work: Work,
+}
+
+impl<'a> Scheme<'a> {
+    /// A scheme for `grid` with the given fluid and physics.
+    pub fn new(fluid: &'a FluidTable, grid: Grid, physics: Physics) -> Self {
+        Self { fluid, grid, physics, work: Work::default() }
+    }
+
+    /// Advances `s` by `dt` with boundary states at the old (`b0`) and new (`b1`) time.
+    /// Returns the new state, or the reason the step must be retried with a smaller `dt`.
+    pub fn step(
+        &mut self,
+        s: &State,
+        dt: f64,
+        b0: [&BoundaryState; 2],
+        b1: [&BoundaryState; 2],
+    ) -> Result<(State, StepReport), Rejection> {
+        let n = self.grid.n;
+        let mut w = std::mem::take(&mut self.work);
+        resize(&mut w, n);
+        let input = StepInput {
+            s,
+            dt,
+            n,
+            inlet0: b0[0],
+            outlet0: b0[1],
+            inlet1: b1[0],
+            outlet1: b1[1],
+            dp_in: b1[0].p - b0[0].p,
+            dp_out: b1[1].p - b0[1].p,
+        };
+        let result = self.phases(&input, &mut w);
+        self.work = w;
+        result
+    }
+
+    /// The phases of a step in order (see the module documentation), passing their results on
+    /// in the work arrays `w`. The first phase that fails rejects the step.
+    fn phases(&self, st: &StepInput, w: &mut Work) -> Result<(State, StepReport), Rejection> {
+        // step 1: provisional velocities, the pressure equation, the new velocities
+        self.old_time_sources(st, w);
+        self.momentum_predictor(st, w);
+        self.pressure_weights(st, w)?;
+        self.provisional_velocities(st, w)?;
+        self.pressure_equation(st, w)?;
+        self.pressure_solve(st, w)?;
+        let mut next = self.velocity_update(st, w);
+        // step 2: the conservative masses and energies with the new velocities
+        let mut budget = StepBudget::default();
+        self.provisional_sources(st, w);
+        self.mass_update(st, w, &next, &mut budget)?;
+        self.dissipated_heat(st, w, &next);
+        self.phase_volume_changes(st, w);
+        self.work_consistency(st, w, &next);
+        self.energy_update(st, w, &mut next, &mut budget)?;
+        self.wall_update(st, w, &mut next, &mut budget);
+        // the new thermodynamic state, the boundary balance, acceptance
+        let max_verr = self.state_recovery(st, w, &mut next, &mut budget)?;
+        // total-energy boundary flux: enthalpy, kinetic and potential energy carried by the
+        // boundary mass fluxes (donor properties)
+        (budget.total_energy_flux, budget.mechanical_flux_abs) =
+            self.total_energy_flux(&next, st.dt, st.inlet1, st.outlet1);
+        next.time = st.s.time + st.dt;
+        all_finite(&next)?;
+        let change = self.change_control(st, &next)?;
+        volume_error_check(st, w, &next)?;
+        Ok((
+            next,
+            StepReport {
+                change_ratio: change.ratio,
+                max_volume_error: max_verr,
+                limiting: change.worst.variable,
+                limiting_index: change.worst.cell,
+                budget,
+            },
+        ))
+    }
+
+    /// The open fraction of junction `j`'s flow area: a boundary valve's at the ends, 1 inside.
+    fn open_fraction(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
+        if j == 0 {
+            inlet.open_fraction
+        } else if j == self.grid.n {
+            outlet.open_fraction
+        } else {
+            1.0
+        }
+    }
+}
+
+/// The inputs of one step that its phases share: the old state, the step, the boundary states
+/// at the old and the new time.
+#[derive(Debug, Clone, Copy)]
+struct StepInput<'s> {
+    /// The state at the old time level.
+    s: &'s State,
+    /// The step, s.
+    dt: f64,
+    /// Number of cells (the junctions are `0..=n`).
+    n: usize,
+    /// Inlet boundary state at the old time.
+    inlet0: &'s BoundaryState,
+    /// Outlet boundary state at the old time.
+    outlet0: &'s BoundaryState,
+    /// Inlet boundary state at the new time.
+    inlet1: &'s BoundaryState,
+    /// Outlet boundary state at the new time.
+    outlet1: &'s BoundaryState,
+    /// The inlet boundary's pressure change over the step, Pa.
+    dp_in: f64,
+    /// The outlet boundary's pressure change over the step, Pa.
+    dp_out: f64,
+}
+
+impl StepInput<'_> {
+    /// The velocities (gas, liquid) that a boundary prescribes at junction `j` (a velocity
+    /// boundary's, zero at a closed end), or `None` where the momentum equations decide them.
+    fn prescribed(&self, j: usize) -> Option<(f64, f64)> {
+        let b = if j == 0 {
+            Some(self.inlet1)
+        } else if j == self.n {
+            Some(self.outlet1)
+        } else {
+            None
+        }?;
+        match b.kind {
+            BoundaryKind::Velocity => Some((b.v_g, b.v_l)),
+            BoundaryKind::Closed => Some((0.0, 0.0)),
+            _ => None,
+        }
+    }
+
+    /// The pressure change of cell `i` in `d`, or of the boundary beyond the first or last cell.
+    fn dp_at(&self, i: isize, d: &[f64]) -> f64 {
+        if i < 0 {
+            self.dp_in
+        } else if i as usize >= self.n {
+            self.dp_out
+        } else {
+            d[i as usize]
+        }
+    }
+}
+
+/// Reusable work arrays of the scheme: the scratch space the phases of a step pass their
+/// results on in (sized by `resize` at every step, allocated at the first). Each field names
+/// the phase that writes it.
+#[derive(Debug, Clone, Default)]
+struct Work {
+    /// Per junction: the coefficients of step 1's forces, for the work they do
+    /// (`momentum_predictor`).
+    mech: Vec<JunctionWork>,
+    /// Per junction: the gas and liquid fractions of the momentum equations' pressure force
+    /// (none where the velocities are prescribed; `momentum_predictor`).
+    alpha_mom: Vec<Option<(f64, f64)>>,
+    /// Per cell: the pressure work of the momentum equations that the energy equations' flow
+    /// work did not book, J (taken from the cell's internal energy; `work_consistency`).
+    work_fix: Vec<f64>,
+    /// Per cell: the new wetted fraction of the wall (`old_time_sources`).
+    wetted: Vec<f64>,
+    /// Dissipated heat per cell going to the gas and the liquid, W (with the old velocities in
+    /// step 1, `pressure_equation`; with the work of the implicit forces in step 2,
+    /// `dissipated_heat`).
+    heat_g: Vec<f64>,
+    /// See `heat_g`.
+    heat_l: Vec<f64>,
+    /// Per cell: the pressure change of the step, Pa (`velocity_update`).
+    dp: Vec<f64>,
+    /// Per cell: the new gas and liquid masses per unit volume, kg/m³ (`mass_update`).
+    mass_g: Vec<f64>,
+    /// See `mass_g`.
+    mass_l: Vec<f64>,
+    /// Per cell: each phase's volume-fraction change over the step (`phase_volume_changes`).
+    dvol_g: Vec<f64>,
+    /// See `dvol_g`.
+    dvol_l: Vec<f64>,
+    /// Per cell: the vapour generation and the gas and liquid energy sources at the
+    /// provisional state, the phase change limited (`provisional_sources`).
+    gamma_used: Vec<f64>,
+    /// See `gamma_used`.
+    sg_used: Vec<f64>,
+    /// See `gamma_used`.
+    sl_used: Vec<f64>,
+    /// Per cell: whether a phase's temperature was reset (`state_recovery`).
+    reset: Vec<bool>,
+    /// Per junction: the heat its momentum forces put into the fluid, W/m³ ([`momentum::booked_heat`];
+    /// estimated in `provisional_velocities`, booked in `dissipated_heat`).
+    junction_heat: Vec<f64>,
+    /// Per junction: the provisional gas and liquid velocities (`provisional_velocities`).
+    vt_g: Vec<f64>,
+    /// See `vt_g`.
+    vt_l: Vec<f64>,
+    /// Per junction: the gas and liquid velocity–pressure weights (`pressure_weights`).
+    w_g: Vec<f64>,
+    /// See `w_g`.
+    w_l: Vec<f64>,
+    /// Per cell: a tridiagonal system — sub-diagonal `a`, diagonal `b`, super-diagonal `c`,
+    /// right-hand side `d` (the solution after the solve), solver scratch `s` — the pressure
+    /// equation (`pressure_equation`), then each conservative update.
+    a: Vec<f64>,
+    /// See `a`.
+    b: Vec<f64>,
+    /// See `a`.
+    c: Vec<f64>,
+    /// See `a`.
+    d: Vec<f64>,
+    /// See `a`.
+    s: Vec<f64>,
+    /// Per junction: the block-tridiagonal momentum system — sub-diagonal, diagonal and
+    /// super-diagonal 2×2 blocks, right-hand sides (the provisional velocities after the solve),
+    /// solver scratch (`momentum_predictor`, `provisional_velocities`).
+    lower: Vec<Matrix2<f64>>,
+    /// See `lower`.
+    diag: Vec<Matrix2<f64>>,
+    /// See `lower`.
+    upper: Vec<Matrix2<f64>>,
+    /// See `lower`.
+    rhs2: Vec<Vector2<f64>>,
+    /// See `lower`.
+    scratch2: Vec<Matrix2<f64>>,
+    /// Per cell: the inverse of its 4×4 system, the right-hand side and the coefficients of the
+    /// neighbours' pressure changes (`pressure_equation`, for `pressure_solve`).
+    minv: Vec<Matrix4<f64>>,
+    /// See `minv`.
+    r4: Vec<Vector4<f64>>,
+    /// See `minv`.
+    cl: Vec<Vector4<f64>>,
+    /// See `minv`.
+    cr: Vec<Vector4<f64>>,
+    /// Per cell: the linearised sources at the old state (`old_time_sources`).
+    sources: Vec<Sources>,
+    /// Per cell: the step-1 unknowns (δp, δα, δT_g, δT_l) (`pressure_solve`).
+    x: Vec<Vector4<f64>>,
+}
+
+/// Sizes the work arrays for `n` cells (`n + 1` junctions).
+fn resize(w: &mut Work, n: usize) {
+    let nj = n + 1;
+    let m = nj.max(n);
+    w.mech.resize(nj, JunctionWork::default());
+    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.junction_heat] {
+        v.resize(nj, 0.0);
+    }
+    for v in [&mut w.a, &mut w.b, &mut w.c, &mut w.d, &mut w.s] {
+        v.resize(n, 0.0);
+    }
+    w.lower.resize(m, Matrix2::zeros());
+    w.diag.resize(m, Matrix2::zeros());
+    w.upper.resize(m, Matrix2::zeros());
+    w.rhs2.resize(m, Vector2::zeros());
+    w.scratch2.resize(m, Matrix2::zeros());
+    w.minv.resize(n, Matrix4::zeros());
+    w.r4.resize(n, Vector4::zeros());
+    w.cl.resize(n, Vector4::zeros());
+    w.cr.resize(n, Vector4::zeros());
+    w.sources.resize(n, Sources::default());
+    w.wetted.resize(n, 0.0);
+    for v in [
+        &mut w.heat_g,
+        &mut w.heat_l,
+        &mut w.dp,
+        &mut w.mass_g,
+        &mut w.mass_l,
+        &mut w.dvol_g,
+        &mut w.dvol_l,
+        &mut w.gamma_used,
+        &mut w.sg_used,
+        &mut w.sl_used,
+    ] {
+        v.resize(n, 0.0);
+    }
+    w.reset.resize(n, false);
+    w.alpha_mom.resize(nj, None);
+    w.work_fix.resize(n, 0.0);
+    w.x.resize(n, Vector4::zeros());
+}
+
+/// Conserved quantities per unit volume of the fluid entering through a boundary:
+/// (mass, internal energy, phase fraction) of the gas or the liquid.
+fn boundary_conserved(b: &BoundaryState, gas: bool) -> (f64, f64, f64) {
+    if gas {
+        (b.alpha * b.gas.rho, b.alpha * b.gas.rho * b.gas.u, b.alpha)
+    } else {
+        let a = 1.0 - b.alpha;
+        (a * b.liquid.rho, a * b.liquid.rho * b.liquid.u, a)
+    }
+}
+
+/// Saturation properties at `p`, or all zeros where there are none (above the critical pressure
+/// or below the triple point): `h_lg = 0` then switches phase change off for the cell.
+pub fn saturation_or_none(fluid: &FluidTable, p: f64) -> Saturation {
+    fluid.saturation(p).unwrap_or(Saturation { pressure_pa: p, ..Saturation::default() })
+}
+
+/// The liquid's share of the mass in cell `i`, m_l/(m_g + m_l).
+///
+/// Decision: the liquid's presence weight (phase blending, `blend_xmin`/`blend_xmax`) is taken
+/// on its mass share, the gas's on its volume fraction. Blending is numerics for a phase too
+/// small to matter: liquid is that when it carries a negligible share of the mass, and a mist
+/// behind a quench front at a volume fraction of 10⁻³ carries a fifth of it (ρ_l/ρ_g ≈ 200 for
+/// nitrogen at 3 bar). Weighed by its volume fraction, that mist had its velocity tied to the
+/// vapour's and its temperature relaxed to saturation, and the station-4 chilldowns moved by
+/// 3–4 % between `blend_xmax` = 10⁻⁴ and 10⁻² (VALIDATION.md). Vapour in a liquid-filled cell
+/// has a negligible mass share at any void fraction, so for the gas the volume fraction stays
+/// the measure: below 1 % of the volume a vapour trace is bubbles that follow the liquid.
+fn liquid_share(s: &State, i: usize) -> f64 {
+    let (m_g, m_l) = (s.m_g[i].max(0.0), s.m_l[i].max(0.0));
+    if m_g + m_l > 0.0 { m_l / (m_g + m_l) } else { 1.0 - s.alpha[i] }
+}
+
+/// Is a phase of mass `m` present next to the other phase's mass `other` (per unit volume)?
+#[inline]
+fn present(m: f64, other: f64) -> bool {
+    m > PRESENT_MASS_FRACTION * (m + other)
+}

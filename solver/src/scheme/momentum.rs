@@ -1,0 +1,515 @@
+//! Step 1a–b: the junctions' momentum equations — their coefficients from the closures, the
+//! block-tridiagonal momentum system, the velocity–pressure weights, the provisional velocities
+//! — and the heat the momentum forces book ([`booked_heat`]).
+
+use nalgebra::{Matrix2, Vector2};
+
+use super::sources::Sources;
+use super::{BLEND_RELAXATION_S, Rejection, Scheme, StepInput, Work, liquid_share};
+use crate::case::BoundaryKind;
+use crate::closures::presence;
+use crate::cryo;
+use crate::linalg;
+use crate::model::{BoundaryState, GRAVITY, State};
+
+/// Relative change of the relative velocity in the difference that gives the drag's Newton slope.
+const NEWTON_DRAG_STEP: f64 = 0.01;
+
+impl Scheme<'_> {
+    /// Step 1a, the momentum predictor: the phasic momentum equations of every junction as a
+    /// block-tridiagonal system of 2×2 blocks (`w.lower`, `w.diag`, `w.upper`, `w.rhs2`) with
+    /// implicit friction, drag, virtual mass, phase-change momentum and donor-cell convection and
+    /// the old pressure gradient; a junction whose velocities a boundary prescribes gets an
+    /// identity row. Keeps each junction's work-doing coefficients (`w.mech`) and the phase
+    /// fractions of its pressure force (`w.alpha_mom`) for step 2.
+    pub(super) fn momentum_predictor(&self, st: &StepInput, w: &mut Work) {
+        let grav = if self.physics.gravity { GRAVITY } else { 0.0 };
+        for j in 0..st.n + 1 {
+            w.lower[j] = Matrix2::zeros();
+            w.upper[j] = Matrix2::zeros();
+            if let Some((vg, vl)) = st.prescribed(j) {
+                w.mech[j] = JunctionWork::default();
+                w.alpha_mom[j] = None;
+                w.diag[j] = Matrix2::identity();
+                w.rhs2[j] = Vector2::new(vg, vl);
+                continue;
+            }
+            let s = st.s;
+            let jc = self.junction_coefficients(s, j, st.inlet0, st.outlet0, grav, st.dt);
+            let (mut diag, mut rhs) = jc.momentum_block(s.v_g[j], s.v_l[j], st.dt, self.grid.dx_junction(j));
+            self.phase_change_momentum(st, &w.sources, j, &mut diag, &mut rhs);
+            w.mech[j] = self.implicit_convection(st, w, j, &jc, &mut diag);
+            w.alpha_mom[j] = Some((jc.a_g, jc.a_l));
+            w.diag[j] = diag;
+            w.rhs2[j] = rhs;
+        }
+    }
+
+    /// Momentum of the mass that changes phase at junction `j`, added to its block and
+    /// right-hand side.
+    ///
+    /// The paper's A Γ_g u_i in the vapour's conservative momentum equation and −A Γ_g u_i in the
+    /// liquid's are, in the non-conservative form here, Γ_g (v_I − v_g) and −Γ_g (v_I − v_l). With
+    /// the interface velocity v_I = (v_g + v_l)/2 (RELAP5's choice) both are −(Γ/2)(v_g − v_l),
+    /// the same force on both phases: evaporating liquid leaves at v_I > v_l, so the liquid that
+    /// stays slows down, and the vapour that forms at v_I < v_g slows the vapour.
+    fn phase_change_momentum(
+        &self,
+        st: &StepInput,
+        sources: &[Sources],
+        j: usize,
+        diag: &mut Matrix2<f64>,
+        rhs: &mut Vector2<f64>,
+    ) {
+        let n = st.n;
+        let (vg, vl) = (st.s.v_g[j], st.s.v_l[j]);
+        // Decision: v_I the mean, because then the kinetic energy of the two phases changes
+        // only by the work of the other forces (−(Γ/2)(v_g² − v_l²) of work against the
+        // ½ Γ (v_g² − v_l²) the transferred mass carries); any other v_I dissipates or creates
+        // kinetic energy that the energy equations do not see. Γ is the old-time rate of
+        // the junction's cells (the mean of the two; a boundary junction's one cell). Each
+        // part is implicit where it damps its own phase's velocity and explicit where it
+        // drives it (for evaporation the liquid's own −(Γ/2)(−v_l), for condensation the
+        // vapour's). Before, the liquid's term had the drag's sign (+(Γ/2)(v_g − v_l)),
+        // which created Γ (v_g − v_l) v_l of kinetic energy.
+        let gamma_j = {
+            let cell_gamma = |i: usize| sources[i].gamma.c0;
+            match (j == 0, j == n) {
+                (true, _) => cell_gamma(0),
+                (_, true) => cell_gamma(n - 1),
+                _ => 0.5 * (cell_gamma(j - 1) + cell_gamma(j)),
+            }
+        };
+        let mt = if self.physics.phase_change && gamma_j.is_finite() { 0.5 * gamma_j } else { 0.0 };
+        // both phases feel −(Γ/2)(v_g − v_l): each part implicit where it damps its own
+        // phase's velocity, explicit where it would drive it
+        if mt > 0.0 {
+            diag[(0, 0)] += mt;
+            diag[(0, 1)] -= mt;
+            diag[(1, 0)] += mt;
+            rhs[1] += mt * vl;
+        } else if mt < 0.0 {
+            let c = -mt;
+            diag[(1, 1)] += c;
+            diag[(1, 0)] -= c;
+            diag[(0, 1)] += c;
+            rhs[0] += c * vg;
+        }
+    }
+
+    /// Implicit donor-cell convection v^n (v_j − v_up)^{n+1} / dx of junction `j`, added to its
+    /// block `diag` and to the off-diagonal blocks `w.lower`, `w.upper`; returns the junction's
+    /// work-doing coefficients (friction, drag, and the convection terms whose heat
+    /// [`booked_heat`] books).
+    ///
+    /// Out of a reservoir the fluid starts from rest, and the jump from 0 to v is given its
+    /// Bernoulli value ½ ρ v² (the donor-cell form would give ρ v²). Where the flow area changes
+    /// between two junctions, the velocity jump is the area ratio and ½ (v_j + v_up) (v_j − v_up)
+    /// is the Bernoulli ½ Δ(v²) exactly. (the standard donor-cell terms are kept for the heat
+    /// they dissipate, see [`booked_heat`]; the Bernoulli forms dissipate nothing)
+    fn implicit_convection(
+        &self,
+        st: &StepInput,
+        w: &mut Work,
+        j: usize,
+        jc: &JunctionCoefficients,
+        diag: &mut Matrix2<f64>,
+    ) -> JunctionWork {
+        let (g, s, n) = (&self.grid, st.s, st.n);
+        let (vg, vl) = (s.v_g[j], s.v_l[j]);
+        let dxj = g.dx_junction(j);
+        let mut work = JunctionWork {
+            fric: [jc.fric_g, jc.fric_l],
+            drag: jc.drag,
+            drag_explicit: jc.drag_explicit,
+            conv: [None; 2],
+        };
+        for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
+            let old_v = |jj: usize| if k == 0 { s.v_g[jj] } else { s.v_l[jj] };
+            let upstream = if v >= 0.0 { j.checked_sub(1) } else { (j < n).then_some(j + 1) };
+            match upstream {
+                Some(up) => {
+                    let c = if g.area_junction[up] != g.area_junction[j] {
+                        ar * (0.5 * (v + old_v(up))).abs() / dxj
+                    } else {
+                        let c = ar * v.abs() / dxj;
+                        // (a phase at rest carries no kinetic energy through the term)
+                        work.conv[k] = (c > 0.0).then_some((c, up));
+                        c
+                    };
+                    diag[(k, k)] += c;
+                    if up < j {
+                        w.lower[j][(k, k)] -= c;
+                    } else {
+                        w.upper[j][(k, k)] -= c;
+                    }
+                }
+                // out of a reservoir; other boundaries carry the junction's own velocity
+                // (no convective acceleration)
+                None => {
+                    let b = if v >= 0.0 { st.inlet0 } else { st.outlet0 };
+                    if b.kind == BoundaryKind::Reservoir {
+                        diag[(k, k)] += 0.5 * ar * v.abs() / dxj;
+                    }
+                }
+            }
+        }
+        work
+    }
+
+    /// Step 1b, the velocity–pressure coupling: the new velocity of a junction is its
+    /// provisional velocity plus a correction linear in the change of the pressure difference
+    /// across it, v = ṽ + w (δp_L − δp_R), the weights `w.w_g`, `w.w_l` through the inverse of
+    /// the junction's own 2×2 block (taken before the solve overwrites the right-hand sides);
+    /// zero where a boundary prescribes the velocities.
+    pub(super) fn pressure_weights(&self, st: &StepInput, w: &mut Work) -> Result<(), Rejection> {
+        let g = &self.grid;
+        for j in 0..st.n + 1 {
+            if st.prescribed(j).is_some() {
+                w.w_g[j] = 0.0;
+                w.w_l[j] = 0.0;
+                continue;
+            }
+            let (a_g, a_l) = self.junction_alpha(st.s, j, st.inlet0, st.outlet0);
+            let dxj = g.dx_junction(j);
+            let Some(inv) = w.diag[j].try_inverse() else {
+                return Err(Rejection {
+                    cell: j,
+                    variable: "momentum",
+                    value: st.dt,
+                    reason: "singular junction block",
+                });
+            };
+            let wv = inv * Vector2::new(a_g / dxj, a_l / dxj);
+            w.w_g[j] = wv[0];
+            w.w_l[j] = wv[1];
+        }
+        Ok(())
+    }
+
+    /// Solves the momentum system for the provisional velocities `w.vt_g`, `w.vt_l`, and
+    /// estimates the heat of the step for the pressure equation (`w.junction_heat`): the work of
+    /// the momentum forces with the provisional velocities and the old masses (step 2 books it
+    /// with the new ones; the closer the two, the smaller the volume error the difference
+    /// leaves).
+    pub(super) fn provisional_velocities(&self, st: &StepInput, w: &mut Work) -> Result<(), Rejection> {
+        let (g, s) = (&self.grid, st.s);
+        if !linalg::block_tridiagonal(&w.lower, &w.diag, &w.upper, &mut w.rhs2, &mut w.scratch2) {
+            return Err(Rejection { cell: 0, variable: "velocity", value: st.dt, reason: "momentum system singular" });
+        }
+        for j in 0..st.n + 1 {
+            w.vt_g[j] = w.rhs2[j][0];
+            w.vt_l[j] = w.rhs2[j][1];
+        }
+        let mass = [s.m_g.as_slice(), s.m_l.as_slice()];
+        for j in 0..st.n + 1 {
+            let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
+            w.junction_heat[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j));
+        }
+        Ok(())
+    }
+
+    fn junction_coefficients(
+        &self,
+        s: &State,
+        j: usize,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+        grav: f64,
+        dt: f64,
+    ) -> JunctionCoefficients {
+        let g = &self.grid;
+        let ph = &self.physics;
+        let n = g.n;
+        let js = self.junction_state(s, j, inlet, outlet);
+        let (a_g, a_l) = (js.alpha, 1.0 - js.alpha);
+        let ar_g = a_g * js.rho_g;
+        let ar_l = a_l * js.rho_l;
+        let (vg, vl) = (s.v_g[j], s.v_l[j]);
+        // the closures see the junction through its donor cell, with the junction's velocities
+        let donor = if j == 0 {
+            0
+        } else if j == n {
+            n - 1
+        } else if a_g * vg + a_l * vl >= 0.0 {
+            j - 1
+        } else {
+            j
+        };
+        let mut local = self.local(s, donor);
+        local.v_g = vg;
+        local.v_l = vl;
+        local.alpha = a_g;
+        local.d_h = g.d_h_junction(j);
+        let cp = &ph.cryo;
+        let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[donor]);
+        let rough = 0.5 * (g.relative_roughness[j.saturating_sub(1)] + g.relative_roughness[j.min(n - 1)]);
+        let (f_g, f_l) = if ph.wall_friction { cryo::wall_friction(&local, cp, &regime, rough) } else { (0.0, 0.0) };
+        let fric = |f: f64, a: f64| if a > 0.0 { f } else { 0.0 };
+        let mut fric_g = fric(f_g, a_g);
+        let mut fric_l = fric(f_l, a_l);
+        // form loss (valve / entrance) at a boundary junction
+        let bnd = if j == 0 {
+            Some(inlet)
+        } else if j == n {
+            Some(outlet)
+        } else {
+            None
+        };
+        let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
+        let gx = -grav * g.sin_junction[j];
+        if let Some(b) = bnd {
+            let loss = FormLoss { b, dx: g.dx_junction(j), dt, dp_old: p_r - p_l, gx };
+            fric_g += loss.coefficient(ar_g, a_g, vg, fric_g);
+            fric_l += loss.coefficient(ar_l, a_l, vl, fric_l);
+        }
+        let rho_m = a_g * js.rho_g + a_l * js.rho_l;
+        let drag_physical = if ph.interphase_drag { cryo::interfacial_drag(&local, cp, &regime) } else { 0.0 };
+        // Newton linearisation of the drag force G(v_r) = F(v_r) v_r about the old relative
+        // velocity: G(v_r^{n+1}) ≈ G' v_r^{n+1} + (F − G') v_r^n. The Picard form F(v_r^n) v_r^{n+1}
+        // maps v_r^n to v_r^{n+1} with slope −(dlnF/dlnv_r) at equilibrium once the step is long
+        // against the drag's relaxation time: the mist's Weber drops (d ∝ v_r⁻², F ∝ v_r³) then
+        // oscillate from step to step with growing amplitude, and held the NBS runs to
+        // millisecond steps wherever mist left the line. With the Newton form the slope is 0 and
+        // the steady state (G = driving force) is unchanged. G' is a one-sided
+        // difference in v_r (1 %), used only where the drag grows faster than linearly (G' > F:
+        // a weaker growth is stable in the Picard form) and capped at 8 F.
+        let (drag_newton, drag_explicit) = {
+            let vr = vg - vl;
+            if drag_physical > 0.0 && vr.abs() > 1e-3 {
+                let mut shifted = local;
+                shifted.v_g = vl + vr * (1.0 + NEWTON_DRAG_STEP);
+                let f2 = cryo::interfacial_drag(&shifted, cp, &regime);
+                let slope = drag_physical + (f2 - drag_physical) / NEWTON_DRAG_STEP;
+                let k = if slope.is_finite() { slope.clamp(drag_physical, 8.0 * drag_physical) } else { drag_physical };
+                (k, (k - drag_physical) * vr)
+            } else {
+                (drag_physical, 0.0)
+            }
+        };
+        let mut drag = drag_newton;
+        // A disappearing phase is tied to the continuous one (phase blending, paper eq.
+        // "smoother"). At a junction a phase counts as disappearing when either neighbouring
+        // cell (nearly) lacks it: its velocity there is otherwise undetermined by anything
+        // physical, and through the convective term it would drag the neighbouring junctions.
+        // (the junction's own fractions count too: fluid drawn from a liquid reservoir has no gas)
+        let (side_g, side_l) = self.junction_min_fractions(s, j);
+        let share_l = if ar_g + ar_l > 0.0 { ar_l / (ar_g + ar_l) } else { a_l };
+        let pres = presence(side_g.min(side_l).min(a_g).min(share_l), ph.cryo.blend_min, ph.cryo.blend_max);
+        drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
+        let vm = if ph.virtual_mass { cryo::virtual_mass_coefficient(&local, cp) * a_g * a_l * rho_m } else { 0.0 };
+        JunctionCoefficients {
+            a_g,
+            a_l,
+            ar_g: ar_g.max(1e-9 * rho_m),
+            ar_l: ar_l.max(1e-9 * rho_m),
+            fric_g,
+            fric_l,
+            drag,
+            drag_explicit,
+            vm,
+            dp_old: p_r - p_l,
+            gx,
+        }
+    }
+
+    fn junction_state(&self, s: &State, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> JunctionState {
+        let n = self.grid.n;
+        let cell = |i: usize| JunctionState { alpha: s.alpha[i], rho_g: s.gas[i].rho, rho_l: s.liquid[i].rho };
+        let bnd = |b: &BoundaryState| JunctionState { alpha: b.alpha, rho_g: b.gas.rho, rho_l: b.liquid.rho };
+        if j > 0 && j < n {
+            let (l, r) = (cell(j - 1), cell(j));
+            let (wl, wr) = (self.grid.dx[j - 1], self.grid.dx[j]);
+            let f = wl / (wl + wr);
+            return JunctionState {
+                alpha: f * l.alpha + (1.0 - f) * r.alpha,
+                rho_g: f * l.rho_g + (1.0 - f) * r.rho_g,
+                rho_l: f * l.rho_l + (1.0 - f) * r.rho_l,
+            };
+        }
+        // boundary junction: the donor side by the mixture velocity, or by the pressure
+        // difference when the fluid is at rest
+        let (b, c, inflow_sign) = if j == 0 { (inlet, cell(0), 1.0) } else { (outlet, cell(n - 1), -1.0) };
+        let vm = s.alpha[if j == 0 { 0 } else { n - 1 }] * s.v_g[j]
+            + (1.0 - s.alpha[if j == 0 { 0 } else { n - 1 }]) * s.v_l[j];
+        let p_cell = s.p[if j == 0 { 0 } else { n - 1 }];
+        let inflow = if vm.abs() > 1e-9 {
+            inflow_sign * vm > 0.0
+        } else {
+            inflow_sign * (if j == 0 { b.p - p_cell } else { p_cell - b.p }) > 0.0
+        };
+        if inflow && !matches!(b.kind, BoundaryKind::Closed) { bnd(b) } else { c }
+    }
+
+    /// Junction phase fractions for the pressure-gradient term.
+    pub(super) fn junction_alpha(
+        &self,
+        s: &State,
+        j: usize,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+    ) -> (f64, f64) {
+        let a = self.junction_state(s, j, inlet, outlet).alpha;
+        (a, 1.0 - a)
+    }
+
+    /// Smallest gas volume fraction and smallest liquid mass share ([`liquid_share`]) of the two
+    /// cells at junction `j`: the arguments of the phases' presence weights.
+    pub(super) fn junction_min_fractions(&self, s: &State, j: usize) -> (f64, f64) {
+        let n = self.grid.n;
+        // at a boundary junction the cell decides: the boundary's composition only describes
+        // fluid that would enter
+        let (l, r) = match (j == 0, j == n) {
+            (true, _) => (0, 0),
+            (_, true) => (n - 1, n - 1),
+            _ => (j - 1, j),
+        };
+        (s.alpha[l].min(s.alpha[r]), liquid_share(s, l).min(liquid_share(s, r)))
+    }
+}
+
+/// Heat that the forces of junction `j`'s momentum equations put into the fluid over a step,
+/// per unit volume of the junction's control volume, W/m³: the kinetic energy they took from
+/// the flow at the velocities `v1` (gas, liquid), the upstream junctions at `vt` (the velocities
+/// of the momentum solve before the pressure correction, which the convective term used), and
+/// the donor masses `mass` of the continuity equation's fluxes.
+///
+/// Decision: every loss of kinetic energy in the discrete momentum equations is heat, booked
+/// where it happens, so that the internal-energy equations keep the paper's total energy
+/// (internal plus kinetic). With the velocity implicit, a force f changes the kinetic energy by
+/// f v¹ Δt less the time-step loss ½ ρ (v¹ − v⁰)². Booked here: wall friction and form losses
+/// F (v¹)², the interphase drag's work at v¹ (its Newton part and the blending tie included),
+/// and the donor-cell convection c (v_j − v_up) v_j less the kinetic energy ½ m_up |v| Δx⁻¹
+/// (v_j² − v_up²) that the continuity equation's mass flux carries (the momentum equation's
+/// α ρ is the junction mean, the mass flux the donor cell's): that is its numerical viscosity
+/// ½ c (v_j − v_up)² plus the kinetic energy the two disagree about. Friction heat F v⁰ v¹ and
+/// the drag's physical part alone, booked before, left 4.2 kJ (saturated 3.4 atm) to 24 kJ
+/// (para-hydrogen) of the run's energy unaccounted; a numerical viscosity dissipates like a
+/// physical one. Not booked: the time-step loss itself (0.03-0.2 kJ over the NBS runs, left
+/// in the reported residual). With it booked, the separation problem kept a 2.5 % vapour pocket
+/// under its liquid level, held there by the blending tie of the junctions on either side
+/// (a disappearing phase is tied where either cell nearly lacks it).
+pub(super) fn booked_heat(
+    m: &JunctionWork,
+    j: usize,
+    v1: [&[f64]; 2],
+    vt: [&[f64]; 2],
+    mass: [&[f64]; 2],
+    dx_j: f64,
+) -> f64 {
+    let (g1, l1) = (v1[0][j], v1[1][j]);
+    let r1 = g1 - l1;
+    let mut heat = m.fric[0] * g1 * g1 + m.fric[1] * l1 * l1 + (m.drag * r1 - m.drag_explicit) * r1;
+    for k in 0..2 {
+        if let Some((c, up)) = m.conv[k] {
+            let (v, v_up, vt_up) = (v1[k][j], v1[k][up], vt[k][up]);
+            let cell = if up < j { j - 1 } else { j };
+            let carried = mass[k][cell].max(0.0) * v.abs() / dx_j;
+            heat += c * (v - vt_up) * v - 0.5 * carried * (v * v - v_up * v_up);
+        }
+    }
+    heat
+}
+
+/// A junction's momentum coefficients that do work on the flow (per unit volume), kept from
+/// step 1 to book that work as heat in step 2.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct JunctionWork {
+    /// Wall friction and form-loss coefficients, N s/m⁴.
+    fric: [f64; 2],
+    /// Implicit drag coefficient (physical slope and blending tie), N s/m⁴.
+    drag: f64,
+    /// Explicit part of the Newton-linearised drag, N/m³.
+    drag_explicit: f64,
+    /// Gas and liquid donor-cell convection: the coefficient α ρ |v| / Δx (junction mean α ρ),
+    /// kg/(m³ s), and the upstream junction; `None` where the term has a Bernoulli form or there
+    /// is no upstream junction.
+    conv: [Option<(f64, usize)>; 2],
+}
+
+#[derive(Debug, Clone, Copy)]
+struct JunctionState {
+    alpha: f64,
+    rho_g: f64,
+    rho_l: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct JunctionCoefficients {
+    a_g: f64,
+    a_l: f64,
+    ar_g: f64,
+    ar_l: f64,
+    fric_g: f64,
+    fric_l: f64,
+    /// Implicit interphase drag coefficient (the Newton slope of the physical drag plus the
+    /// phase-blending tie), N s/m⁴.
+    drag: f64,
+    /// Explicit part of the Newton-linearised drag on the gas, (G' − F) v_r^n, N/m³ (the liquid
+    /// gets its negative).
+    drag_explicit: f64,
+    vm: f64,
+    dp_old: f64,
+    gx: f64,
+}
+
+impl JunctionCoefficients {
+    /// The junction's 2×2 momentum block and right-hand side before the phase-change momentum
+    /// and the convection terms: inertia, friction, drag (its Newton part explicit), virtual mass
+    /// (its time-derivative term), the old pressure gradient and gravity, for the old velocities
+    /// `vg`, `vl`, the step `dt` and the junction's length `dxj`.
+    fn momentum_block(&self, vg: f64, vl: f64, dt: f64, dxj: f64) -> (Matrix2<f64>, Vector2<f64>) {
+        let jc = self;
+        let drag = jc.drag;
+        let diag = Matrix2::new(
+            jc.ar_g / dt + jc.fric_g + drag + jc.vm / dt,
+            -drag - jc.vm / dt,
+            -drag - jc.vm / dt,
+            jc.ar_l / dt + jc.fric_l + drag + jc.vm / dt,
+        );
+        let rhs = Vector2::new(
+            jc.ar_g * vg / dt + jc.vm / dt * (vg - vl) - jc.a_g * jc.dp_old / dxj + jc.ar_g * jc.gx + jc.drag_explicit,
+            jc.ar_l * vl / dt - jc.vm / dt * (vg - vl) - jc.a_l * jc.dp_old / dxj + jc.ar_l * jc.gx - jc.drag_explicit,
+        );
+        (diag, rhs)
+    }
+}
+
+/// The form loss of a boundary junction (valve, entrance): K ρ v|v| / (2 dx), the valve closing
+/// the area scaling K with 1/open² (plus the sudden-contraction term (1/open − 1)²).
+struct FormLoss<'b> {
+    b: &'b BoundaryState,
+    /// The junction's length, m.
+    dx: f64,
+    dt: f64,
+    /// Old pressure difference across the junction (right − left), Pa.
+    dp_old: f64,
+    /// Gravity along the junction, m/s².
+    gx: f64,
+}
+
+impl FormLoss<'_> {
+    /// The loss coefficient of one phase, N s/m⁴ per unit volume (the coefficient of v^{n+1}
+    /// in its momentum equation), for the phase's `ar` = αρ, volume fraction `a`, old velocity
+    /// `v` and the friction coefficient `fric` it already has.
+    ///
+    /// Decision: the loss is linearised about the speed v* that solves the junction's own
+    /// momentum balance with the loss implicit,
+    ///   (αρ/Δt + F) v* + c v*|v*| = |αρ vⁿ/Δt − α Δpⁿ/dx + αρ g_x|,   c = K αρ / (2 dx),
+    /// rather than about the old speed |vⁿ|. About |vⁿ| the loss vanishes where the fluid is at
+    /// rest: the first step through a valve 0.05 % open accelerated the liquid to 7 m/s, which
+    /// the next step, now seeing K ≈ 10⁷, threw back to rest (on 480 cells the 25 % rule then
+    /// rejected every step length); and on long steps the old-speed form maps v to
+    /// (Δp/dx)/(c v), a two-step oscillation. v* tends to |vⁿ| as Δt → 0, so the scheme's
+    /// consistency is unchanged; where the loss dominates, the step gives the quasi-steady
+    /// speed √(2 Δp / (K ρ)).
+    fn coefficient(&self, ar: f64, a: f64, v: f64, fric: f64) -> f64 {
+        let open = self.b.open_fraction.max(1e-6);
+        let k = self.b.loss / (open * open) + if open < 1.0 { (1.0 / open - 1.0).powi(2) } else { 0.0 };
+        let c = k * ar / (2.0 * self.dx);
+        let inertia = ar / self.dt + fric;
+        let drive = (ar * v / self.dt - a * self.dp_old / self.dx + ar * self.gx).abs();
+        let speed = 2.0 * drive / (inertia + (inertia * inertia + 4.0 * c * drive).sqrt());
+        c * if speed.is_finite() { speed } else { v.abs() }
+    }
+}

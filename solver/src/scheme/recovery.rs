@@ -1,0 +1,200 @@
+//! The new thermodynamic state from the conserved variables: pressure, phase masses,
+//! temperatures (with the trace resets booked in the budget), void fraction and volume error.
+
+use super::{
+    PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION, Work, saturation_or_none,
+};
+use crate::fluids::{FluidTable, Phase, PhaseProps};
+use crate::model::{State, clamp_to_phase};
+
+impl Scheme<'_> {
+    /// The new thermodynamic state from the conserved variables: each cell's new pressure
+    /// (checked against the property table), its phase masses (a negative one rejects the step)
+    /// and the phases' temperatures from their energies ([`Recovery::phase`]); returns the
+    /// largest |volume error| over the cells.
+    pub(super) fn state_recovery(
+        &self,
+        st: &StepInput,
+        w: &mut Work,
+        next: &mut State,
+        budget: &mut StepBudget,
+    ) -> Result<f64, Rejection> {
+        let mut max_verr: f64 = 0.0;
+        for i in 0..st.n {
+            let verr = self.recover_cell(st, w, next, budget, i)?;
+            max_verr = max_verr.max(verr.abs());
+        }
+        Ok(max_verr)
+    }
+
+    /// Recovers cell `i` of `next` (see [`Scheme::state_recovery`]), noting in `w.reset`
+    /// whether a phase of it was reset; returns its volume error.
+    fn recover_cell(
+        &self,
+        st: &StepInput,
+        w: &mut Work,
+        next: &mut State,
+        budget: &mut StepBudget,
+        i: usize,
+    ) -> Result<f64, Rejection> {
+        let (s, fluid) = (st.s, self.fluid);
+        let p = s.p[i] + w.x[i][0];
+        if !(p.is_finite() && p > 0.0) {
+            return Err(Rejection { cell: i, variable: "pressure", value: p, reason: "non-physical pressure" });
+        }
+        let c = fluid.constants();
+        if !(p >= c.p_min_pa && p <= c.p_max_pa) {
+            return Err(Rejection {
+                cell: i,
+                variable: "pressure",
+                value: p,
+                reason: "outside the property table's pressure range",
+            });
+        }
+        next.p[i] = p;
+        let total = next.m_g[i] + next.m_l[i];
+        for (gas, m) in [(true, next.m_g[i]), (false, next.m_l[i])] {
+            if !m.is_finite() || m < -1e-12 * total {
+                return Err(Rejection {
+                    cell: i,
+                    variable: if gas { "gas mass" } else { "liquid mass" },
+                    value: m,
+                    reason: "negative phase mass",
+                });
+            }
+        }
+        let tiny = PRESENT_MASS_FRACTION * total.max(1e-30);
+        let (mg, ml) = (next.m_g[i].max(0.0), next.m_l[i].max(0.0));
+        next.m_g[i] = mg;
+        next.m_l[i] = ml;
+        // gas
+        let tg_guess = s.t_g[i] + w.x[i][2];
+        let tl_guess = s.t_l[i] + w.x[i][3];
+        let cell = Recovery {
+            fluid,
+            s,
+            i,
+            p,
+            tiny,
+            volume: self.grid.volume[i],
+            blend_min: self.physics.cryo.blend_min,
+            blend_max: self.physics.cryo.blend_max,
+        };
+        let (tg, gp, eg, reset_g) = cell.phase(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, budget)?;
+        let (tl, lp, el, reset_l) = cell.phase(Phase::Liquid, ml, next.e_l[i], tl_guess, tg, budget)?;
+        w.reset[i] = reset_g || reset_l;
+        next.e_g[i] = eg;
+        next.e_l[i] = el;
+        let ag = mg / gp.rho;
+        let al = ml / lp.rho;
+        let verr = ag + al - 1.0;
+        next.alpha[i] = ag / (ag + al);
+        next.t_g[i] = tg;
+        next.t_l[i] = tl;
+        next.gas[i] = gp;
+        next.liquid[i] = lp;
+        next.volume_error[i] = verr;
+        next.sat[i] = saturation_or_none(fluid, p);
+        Ok(verr)
+    }
+}
+
+/// A phase's recovered temperature, properties and conserved energy per unit volume, and
+/// whether its temperature was reset.
+type Recovered = (f64, PhaseProps, f64, bool);
+
+/// What recovering the temperatures of cell `i`'s phases from their new masses and energies
+/// needs ([`Recovery::phase`]).
+#[derive(Debug, Clone, Copy)]
+struct Recovery<'a> {
+    fluid: &'a FluidTable,
+    /// The old state (a phase's old density estimates its volume fraction).
+    s: &'a State,
+    /// The cell.
+    i: usize,
+    /// The cell's new pressure, Pa.
+    p: f64,
+    /// Mass per unit volume at or below which a phase is reset, kg/m³.
+    tiny: f64,
+    /// The cell's volume, m³.
+    volume: f64,
+    /// Phase-blending thresholds (`CryoParams::blend_min`, `blend_max`).
+    blend_min: f64,
+    /// See `blend_min`.
+    blend_max: f64,
+}
+
+impl Recovery<'_> {
+    /// The temperature of a phase of mass `m` and energy `e` per unit volume (`guess` to start
+    /// the inversion from, `other_t` the other phase's temperature).
+    ///
+    /// A phase present in more than a trace keeps the temperature its conserved energy gives. A
+    /// trace (volume fraction below blend_min, or below TRACE_RESET_FRACTION when its energy has
+    /// left the table) takes the other phase's temperature, moved into its own table: its
+    /// energy per unit mass is ill-conditioned (tiny mass, finite pressure work, compression by
+    /// liquid hammer), and the reset moves at most a trace of energy, booked as an adjustment
+    /// in the budget.
+    fn phase(
+        &self,
+        phase: Phase,
+        m: f64,
+        e: f64,
+        guess: f64,
+        other_t: f64,
+        budget: &mut StepBudget,
+    ) -> Result<Recovered, Rejection> {
+        let (fluid, p, i, tiny) = (self.fluid, self.p, self.i, self.tiny);
+        let (name, energy_name, what) = match phase {
+            Phase::Gas => ("gas temperature", "gas specific energy (J/kg)", "gas energy outside the property table"),
+            Phase::Liquid => {
+                ("liquid temperature", "liquid specific energy (J/kg)", "liquid energy outside the property table")
+            }
+        };
+        let target = clamp_to_phase(fluid, phase, p, other_t);
+        let reset = |budget: &mut StepBudget| -> Result<Recovered, Rejection> {
+            let pr = fluid.phase_props(phase, p, target).map_err(|_| Rejection {
+                cell: i,
+                variable: name,
+                value: target,
+                reason: "outside the property table",
+            })?;
+            budget.adjust((m * pr.u - e) * self.volume);
+            Ok((target, pr, m * pr.u, m > tiny))
+        };
+        if m <= tiny {
+            return reset(budget);
+        }
+        // the phase's volume fraction, estimated with its old density
+        let old_rho = match phase {
+            Phase::Gas => self.s.gas[i].rho,
+            Phase::Liquid => self.s.liquid[i].rho,
+        };
+        let trace_frac = m / old_rho;
+        if trace_frac < self.blend_min {
+            return reset(budget);
+        }
+        match fluid.temperature_from_energy(phase, p, e / m, guess) {
+            Ok((t, pr)) => Ok((t, pr, e, false)),
+            Err(_) if trace_frac < self.blend_max.max(TRACE_RESET_FRACTION) => {
+                // the nearest temperature the table holds, which changes the trace's
+                // density (and so the cell's volume balance) least
+                let Some((lo, hi)) = fluid.phase_temperature_range(phase, p) else {
+                    return reset(budget);
+                };
+                let u_lo = fluid.phase_props(phase, p, lo).map(|pr| pr.u).unwrap_or(f64::NAN);
+                let margin = 1e-6 * (hi - lo);
+                let t = if e / m <= u_lo { lo + margin } else { hi - margin };
+                let pr = fluid.phase_props(phase, p, t).map_err(|_| Rejection {
+                    cell: i,
+                    variable: name,
+                    value: t,
+                    reason: "outside the property table",
+                })?;
+                budget.adjust((m * pr.u - e) * self.volume);
+                Ok((t, pr, m * pr.u, true))
+            }
+            // the value is the specific internal energy, J/kg (no temperature fits it)
+            Err(_) => Err(Rejection { cell: i, variable: energy_name, value: e / m, reason: what }),
+        }
+    }
+}
