@@ -1,10 +1,18 @@
 //! Draws from a multivariate Gaussian (the variance stage's approximation of the posterior), for
 //! predictions when no MCMC stage ran.
+//!
+//! Decision: the variance stage fits its Gaussian in unit coordinates, where a logarithmic
+//! parameter is uniform in `ln x`; [`space_draws`] draws there and maps each draw through the
+//! [`Space`], so that a wide interval of a log-scaled parameter stays positive and skewed as its
+//! reported 95 % interval is, instead of a symmetric physical Gaussian clamped at the lower bound
+//! (which piles draws on the bound and shifts a posterior-predictive band away from the best fit).
 
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+
+use crate::space::Space;
 
 /// Why no draws can be made.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -63,6 +71,22 @@ pub fn gaussian_draws(
         .collect())
 }
 
+/// `n` draws of the Gaussian N(`centre_unit`, `cov_unit`) in the unit coordinates of `space`,
+/// each clamped into the unit box and returned in physical values (see the module's decision).
+pub fn space_draws(
+    space: &Space,
+    centre_unit: &[f64],
+    cov_unit: &[Vec<f64>],
+    n: usize,
+    seed: u64,
+) -> Result<Vec<Vec<f64>>, DrawsError> {
+    if centre_unit.len() != space.dim() {
+        return Err(DrawsError::Shape { dim: space.dim() });
+    }
+    let unit = gaussian_draws(centre_unit, cov_unit, &vec![(0.0, 1.0); space.dim()], n, seed)?;
+    Ok(unit.iter().map(|u| space.to_physical(u)).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -84,5 +108,25 @@ mod tests {
         assert!(y.iter().all(|v| v[0].abs() <= 0.5));
         assert_eq!(gaussian_draws(&[0.0], &[vec![f64::NAN]], &[(0.0, 1.0)], 1, 1), Err(DrawsError::NotFinite));
         assert_eq!(gaussian_draws(&[0.0], &[vec![1.0]], &[], 1, 1), Err(DrawsError::Shape { dim: 1 }));
+    }
+
+    #[test]
+    fn draws_in_unit_coordinates_keep_a_log_parameter_positive_and_its_median() {
+        use crate::space::{FreeParameter, Scale};
+        let p =
+            |name: &str, lower: f64, upper: f64, scale: Scale| FreeParameter { name: name.into(), lower, upper, scale };
+        let space = Space::new(vec![p("a", 0.01, 100.0, Scale::Log), p("b", 0.0, 10.0, Scale::Linear)]).unwrap();
+        // a wide Gaussian around a = 1 (unit 0.5): a physical Gaussian this wide would be clamped
+        // at 0.01 for about a third of its draws
+        let x = space_draws(&space, &[0.5, 0.5], &[vec![0.04, 0.0], vec![0.0, 0.0001]], 4000, 3).unwrap();
+        let mut a: Vec<f64> = x.iter().map(|v| v[0]).collect();
+        a.sort_by(f64::total_cmp);
+        assert!(a.iter().all(|&v| (0.01..=100.0).contains(&v)));
+        let clamped = a.iter().filter(|&&v| v == 0.01).count();
+        assert!(clamped < 40, "{clamped} draws on the lower bound");
+        let median = a[a.len() / 2];
+        assert!((median / 1.0 - 1.0).abs() < 0.1, "median {median}");
+        assert!(x.iter().all(|v| (v[1] - 5.0).abs() < 0.5));
+        assert_eq!(space_draws(&space, &[0.5], &[vec![1.0]], 1, 1), Err(DrawsError::Shape { dim: 2 }));
     }
 }

@@ -603,6 +603,8 @@ fn uncertainty(reports: &[StageReport]) -> serde_json::Value {
                     .collect();
                 return json!({"method": "variance", "stage": r.index, "parameters": params,
                               "names": r.free, "covariance": g.covariance_physical, "correlation": g.correlation,
+                              "centre_unit": g.centre_unit, "covariance_unit": g.covariance_unit,
+                              "positive_definite": g.positive_definite,
                               "divergent_nearby": v.divergent.len()});
             }
             _ => {}

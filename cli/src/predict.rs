@@ -13,9 +13,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
+use cryofit_calib::Space;
 use cryofit_calib::apparatus;
 use cryofit_calib::config::CalibrationSpec;
-use cryofit_calib::draws::gaussian_draws;
+use cryofit_calib::draws::{gaussian_draws, space_draws};
 use cryofit_solver::case::Case;
 use cryofit_solver::driver::{self, Output};
 use cryofit_solver::params::{self, ParameterSet};
@@ -95,30 +96,54 @@ fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>,
         }
         let names: Vec<String> = serde_json::from_value(u["names"].clone())
             .with_context(|| format!("{}: uncertainty.names", result_path.display()))?;
-        let cov: Vec<Vec<f64>> = serde_json::from_value(u["covariance"].clone())
-            .with_context(|| format!("{}: uncertainty.covariance", result_path.display()))?;
-        let mean: Vec<f64> = names
-            .iter()
-            .map(|n| {
-                u["parameters"][n]["value"]
-                    .as_f64()
-                    .ok_or_else(|| anyhow!("{}: uncertainty value of {n}", result_path.display()))
-            })
-            .collect::<Result<_>>()?;
-        // the calibration's own bounds (a case field has no others), else the registry's
-        let space =
-            serde_json::from_value::<CalibrationSpec>(result["calibration"].clone()).ok().and_then(|s| s.space().ok());
-        let bounds: Vec<(f64, f64)> = names
-            .iter()
-            .map(|n| {
-                let own = space.as_ref().and_then(|s| s.params().iter().find(|p| &p.name == n));
-                own.map(|p| (p.lower, p.upper))
-                    .or_else(|| params::spec(n).map(|s| (s.lower, s.upper)))
-                    .ok_or_else(|| anyhow!("{}: no bounds for parameter {n}", result_path.display()))
-            })
-            .collect::<Result<_>>()?;
-        let rows =
-            gaussian_draws(&mean, &cov, &bounds, n, seed).map_err(|e| anyhow!("{}: {e}", result_path.display()))?;
+        if u["positive_definite"] == false {
+            bail!(
+                "--from {}: the variance stage's Hessian is not positive definite (result.json: stages, warnings), so its \
+                 Gaussian is not a posterior to draw from; add an mcmc stage to the calibration, or use `cryofit \
+                 simulate --params {}`",
+                dir.display(),
+                dir.join("best.toml").display()
+            );
+        }
+        // the calibration's own free parameters (bounds and scales), in the stage's order
+        let space = serde_json::from_value::<CalibrationSpec>(result["calibration"].clone())
+            .ok()
+            .and_then(|s| s.space().ok())
+            .and_then(|space| {
+                let own: Option<Vec<_>> =
+                    names.iter().map(|n| space.params().iter().find(|p| &p.name == n).cloned()).collect();
+                Space::new(own?).ok()
+            });
+        let unit: Option<(Vec<f64>, Vec<Vec<f64>>)> = serde_json::from_value(u["centre_unit"].clone())
+            .ok()
+            .zip(serde_json::from_value(u["covariance_unit"].clone()).ok());
+        let rows = match (space, unit) {
+            (Some(space), Some((centre, cov))) => space_draws(&space, &centre, &cov, n, seed),
+            // a result.json written before the unit-coordinate fields: the physical Gaussian
+            (space, _) => {
+                let cov: Vec<Vec<f64>> = serde_json::from_value(u["covariance"].clone())
+                    .with_context(|| format!("{}: uncertainty.covariance", result_path.display()))?;
+                let mean: Vec<f64> = names
+                    .iter()
+                    .map(|n| {
+                        u["parameters"][n]["value"]
+                            .as_f64()
+                            .ok_or_else(|| anyhow!("{}: uncertainty value of {n}", result_path.display()))
+                    })
+                    .collect::<Result<_>>()?;
+                let bounds: Vec<(f64, f64)> = names
+                    .iter()
+                    .map(|n| {
+                        let own = space.as_ref().and_then(|s| s.params().iter().find(|p| &p.name == n));
+                        own.map(|p| (p.lower, p.upper))
+                            .or_else(|| params::spec(n).map(|s| (s.lower, s.upper)))
+                            .ok_or_else(|| anyhow!("{}: no bounds for parameter {n}", result_path.display()))
+                    })
+                    .collect::<Result<_>>()?;
+                gaussian_draws(&mean, &cov, &bounds, n, seed)
+            }
+        }
+        .map_err(|e| anyhow!("{}: {e}", result_path.display()))?;
         (names, rows, "Gaussian approximation of the variance stage")
     };
     let sets = rows

@@ -249,7 +249,7 @@ fn a_calibration_frees_shared_and_per_experiment_case_fields() {
         let k = result["best_parameters"][format!("case.inlet.loss_coefficient@{exp}")].as_f64().unwrap();
         assert_eq!(summary["case_fields"]["inlet.loss_coefficient"].as_f64(), Some(k));
     }
-    // predict over the posterior (when the variance stage gave one) or say why not
+    // predict over the posterior (when the variance stage gave one that holds) or say why not
     let pred = dir.join("pred");
     let case = dir.join("b.toml");
     let out = cryofit(&[
@@ -264,6 +264,9 @@ fn a_calibration_frees_shared_and_per_experiment_case_fields() {
     ]);
     if result["uncertainty"].is_null() {
         assert!(String::from_utf8_lossy(&out.stderr).contains("no posterior"), "{out:?}");
+    } else if result["uncertainty"]["positive_definite"] == false {
+        assert!(String::from_utf8_lossy(&out.stderr).contains("not positive definite"), "{out:?}");
+        assert!(!pred.exists(), "nothing written for a refused prediction");
     } else {
         ok(&out);
         assert!(String::from_utf8_lossy(&out.stderr).contains("skipped case.inlet.loss_coefficient@tiny"));

@@ -93,16 +93,18 @@ wall_temperature_k = { weight = 1.0, sigma = 1.0 }
 [[stages]]
 algorithm = "cmaes"
 budget = 150
+# finite differences over 6 % of each (log) range: at 3 % the cost's jitter (about 14 units here)
+# outweighs the curvature along the valley of hg0sc and Gwsc and the Hessian comes out indefinite
 [[stages]]
 algorithm = "variance"
 budget = 40
-step = 0.03
+step = 0.06
 restarts = 1
 "#;
 
-/// Twin experiment: CMA-ES recovers both parameters within 5 %; the reported 95 %
-/// intervals (widened for the simulation's numerical noise) cover both true values; the outputs
-/// are complete and best.toml reproduces the best fit.
+/// Twin experiment: CMA-ES recovers both parameters within 5 %; the variance stage's Hessian is
+/// positive definite and its 95 % intervals (widened for the simulation's numerical noise) cover
+/// both true values; the outputs are complete and best.toml reproduces the best fit.
 #[test]
 fn twin_experiment_recovers_the_truth_and_predicts() {
     let dir = scratch("twin");
@@ -118,6 +120,7 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
 
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
+    assert_eq!(result["uncertainty"]["positive_definite"], true, "the intervals are estimates, not placeholders");
     for (name, truth) in [("hg0sc", TRUE_HG0SC), ("Gwsc", TRUE_GWSC)] {
         let best = result["best_parameters"][name].as_f64().unwrap();
         assert!((best / truth - 1.0).abs() < 0.05, "{name}: best {best}, truth {truth}");

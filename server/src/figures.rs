@@ -15,7 +15,7 @@ use cryofit_api as api;
 use cryofit_calib::Space;
 use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
 use cryofit_calib::data::Dataset;
-use cryofit_calib::draws::gaussian_draws;
+use cryofit_calib::draws::space_draws;
 use cryofit_calib::inference::InferenceSummary;
 use cryofit_calib::model::{SolverModel, probes_dataset};
 use cryofit_calib::pipeline::StageReport;
@@ -174,18 +174,29 @@ impl<'a> Context<'a> {
             if let Some(InferenceSummary::Variance(v)) = &r.details
                 && let Some(g) = &v.gaussian
             {
+                if !g.positive_definite {
+                    return Err(format!(
+                        "the variance stage's Hessian is not positive definite ({} of {} directions regularised): \
+                         the best point is not a minimum along every direction and the Gaussian approximation \
+                         does not hold there",
+                        g.regularised,
+                        g.eigenvalues.len()
+                    ));
+                }
                 let space = self.space.as_ref().map_err(Clone::clone)?;
-                let bounds: Vec<(f64, f64)> = r
-                    .free
-                    .iter()
-                    .map(|n| {
-                        space.params().iter().find(|p| &p.name == n).map(|p| (p.lower, p.upper)).unwrap_or_else(|| {
-                            params::spec(n).map_or((f64::NEG_INFINITY, f64::INFINITY), |s| (s.lower, s.upper))
+                let own = Space::new(
+                    r.free
+                        .iter()
+                        .map(|n| {
+                            space.params().iter().find(|p| &p.name == n).cloned().ok_or_else(|| {
+                                format!("the variance stage's parameter {n} is not a free parameter of the calibration")
+                            })
                         })
-                    })
-                    .collect();
-                let draws = gaussian_draws(&g.centre_physical, &g.covariance_physical, &bounds, 1000, seed)
-                    .map_err(|e| e.to_string())?;
+                        .collect::<Result<_, String>>()?,
+                )
+                .map_err(|e| e.to_string())?;
+                let draws =
+                    space_draws(&own, &g.centre_unit, &g.covariance_unit, 1000, seed).map_err(|e| e.to_string())?;
                 return Ok((r.free.clone(), draws, "Gaussian approximation of the variance stage"));
             }
         }
@@ -459,6 +470,8 @@ fn fit_figures(
     let mut runs: Vec<Dataset> = Vec::new();
     if opts.band_draws == 0 {
         band_note = "posterior-predictive band not requested".into();
+    } else if let Err(why) = posterior {
+        band_note = format!("no posterior-predictive band: {why}");
     } else if let Ok((names, draws, _)) = posterior {
         let n = opts.band_draws.min(draws.len());
         let step = draws.len() as f64 / n.max(1) as f64;
@@ -480,13 +493,12 @@ fn fit_figures(
             band_note = String::new();
         }
     }
-    let band_label = format!("5–95 % posterior predictive ({} runs)", runs.len());
     quantities
         .iter()
         .map(|q| {
             let (n, t) = fig(q);
             let (label, scale, _) = quantity_display(q);
-            let panels: Vec<plots::StationPanel> = e
+            let mut panels: Vec<plots::StationPanel> = e
                 .case
                 .stations
                 .iter()
@@ -497,23 +509,6 @@ fn fit_figures(
                     if data.is_none() && q != "wall_temperature_k" {
                         return None;
                     }
-                    let band = (!runs.is_empty()).then(|| {
-                        m.times
-                            .iter()
-                            .filter_map(|&t| {
-                                let mut v: Vec<f64> = runs
-                                    .iter()
-                                    .filter_map(|r| r.series.get(&key).and_then(|s| s.at(t)))
-                                    .filter(|v| v.is_finite())
-                                    .collect();
-                                if v.len() < MIN_BAND_RUNS {
-                                    return None;
-                                }
-                                v.sort_by(f64::total_cmp);
-                                Some((t, quantile(&v, 0.05), quantile(&v, 0.95)))
-                            })
-                            .collect()
-                    });
                     Some(plots::StationPanel {
                         station: st.name.clone(),
                         x_m: Some(st.x_m),
@@ -521,27 +516,90 @@ fn fit_figures(
                             .map(|s| s.times.iter().copied().zip(s.values.iter().copied()).collect())
                             .unwrap_or_default(),
                         model: m.times.iter().copied().zip(m.values.iter().copied()).collect(),
-                        band,
+                        band: (!runs.is_empty()).then(|| band(&runs, &key, &m.times)),
                     })
                 })
                 .collect();
             if panels.is_empty() {
                 return skipped(&n, &t, format!("the model records no {label} at the stations"));
             }
-            let mut title = ctx.title(&format!("{}, {label}", e.name));
-            if !band_note.is_empty() && q == quantities[0].as_str() {
-                title.push_str(&format!(" — {band_note}"));
+            // the run-wide note on the first quantity's figure; a figure's own on that figure
+            let mut note = if q == quantities[0].as_str() { band_note.clone() } else { String::new() };
+            let mut band_label = format!("5–95 % posterior predictive ({} runs)", runs.len());
+            if let Some(inside) = best_fit_coverage(&panels) {
+                if inside < MIN_BEST_FIT_COVERAGE {
+                    note = format!(
+                        "no posterior-predictive band: the best fit lies inside the {} posterior runs' 5–95 % range at \
+                         only {:.0} % of its points, so the posterior does not describe the runs near the best point",
+                        runs.len(),
+                        100.0 * inside
+                    );
+                    for p in &mut panels {
+                        p.band = None;
+                    }
+                } else {
+                    band_label = format!(
+                        "5–95 % posterior predictive ({} runs; best fit inside at {:.0} % of its points)",
+                        runs.len(),
+                        100.0 * inside
+                    );
+                }
             }
-            let plot = Plot::Fit(plots::FitPanels {
-                title,
-                value_label: label,
-                value_scale: scale,
-                band_label: band_label.clone(),
-                panels,
-            });
+            let mut title = ctx.title(&format!("{}, {label}", e.name));
+            if !note.is_empty() {
+                title.push_str(&format!(" — {note}"));
+            }
+            let plot =
+                Plot::Fit(plots::FitPanels { title, value_label: label, value_scale: scale, band_label, panels });
             Figure { name: n, title: t, plot: Ok(plot) }
         })
         .collect()
+}
+
+/// The 5–95 % range of the posterior runs' `key` series at each of `times` (times where fewer
+/// than [`MIN_BAND_RUNS`] runs have a finite value are left out).
+fn band(runs: &[Dataset], key: &(String, String), times: &[f64]) -> Vec<(f64, f64, f64)> {
+    times
+        .iter()
+        .filter_map(|&t| {
+            let mut v: Vec<f64> =
+                runs.iter().filter_map(|r| r.series.get(key).and_then(|s| s.at(t))).filter(|v| v.is_finite()).collect();
+            if v.len() < MIN_BAND_RUNS {
+                return None;
+            }
+            v.sort_by(f64::total_cmp);
+            Some((t, quantile(&v, 0.05), quantile(&v, 0.95)))
+        })
+        .collect()
+}
+
+/// Fewest of the best fit's points (fraction, over the panels' banded times) that must lie inside
+/// the posterior-predictive band for the band to be drawn.
+///
+/// Decision: were the best fit a typical run of the posterior it drew the band from, it would lie
+/// inside the 5–95 % range at about 90 % of its points. A best point chosen for its low cost
+/// among jittering neighbours (VALIDATION.md) is less typical than that, and the label states the
+/// fraction; below one half, the band describes other runs than the best one and is not drawn,
+/// with the reason in the title.
+const MIN_BEST_FIT_COVERAGE: f64 = 0.5;
+
+/// The fraction of the best fit's points, over all panels, that lie inside their panel's band at
+/// the same time; `None` where no panel has a band.
+fn best_fit_coverage(panels: &[plots::StationPanel]) -> Option<f64> {
+    let (mut inside, mut total) = (0usize, 0usize);
+    for p in panels {
+        let Some(band) = &p.band else { continue };
+        let model: BTreeMap<u64, f64> = p.model.iter().map(|&(t, v)| (t.to_bits(), v)).collect();
+        for &(t, lo, hi) in band {
+            if let Some(&v) = model.get(&t.to_bits()) {
+                total += 1;
+                if (lo..=hi).contains(&v) {
+                    inside += 1;
+                }
+            }
+        }
+    }
+    (total > 0).then(|| inside as f64 / total as f64)
 }
 
 fn boiling_figure(
@@ -645,6 +703,79 @@ mod tests {
             updated: 0,
         };
         CalibrationData { calibration, sets: Vec::new(), experiments: vec![experiment] }
+    }
+
+    /// The variance stage of `Gwsc` with a Hessian of `h` at Gwsc = 1 (unit 1/3 of [0.5, 2]).
+    fn with_variance_stage(h: f64) -> CalibrationData {
+        use cryofit_calib::inference::{Variance, VarianceOptions};
+        let space = Space::new(vec![cryofit_calib::space::FreeParameter {
+            name: "Gwsc".into(),
+            lower: 0.5,
+            upper: 2.0,
+            scale: cryofit_calib::space::Scale::Linear,
+        }])
+        .unwrap();
+        let options = VarianceOptions { restarts: 0, profile_points: 0, ..VarianceOptions::default() };
+        let v = Variance::new(&space, Some(&[1.0 / 3.0]), options, 3, 1).unwrap();
+        let mut alg = cryofit_calib::inference::InferenceAlgorithm::Variance(Box::new(v));
+        cryofit_calib::api::minimize(&mut alg, 8, |u: &[f64]| {
+            let x = u[0] - 1.0 / 3.0;
+            cryofit_calib::api::Outcome::Ok { cost: 10.0 + 0.5 * h * x * x }
+        });
+        let details = alg.summary();
+        if let InferenceSummary::Variance(s) = &details {
+            assert_eq!(s.gaussian.as_ref().expect("a Gaussian").positive_definite, h > 0.0);
+        }
+        let report = StageReport {
+            index: 0,
+            algorithm: AlgorithmName::Variance,
+            budget: 3,
+            evaluations: 3,
+            failed_evaluations: 0,
+            free: vec!["Gwsc".into()],
+            best_cost: Some(10.0),
+            best_parameters: BTreeMap::from([("Gwsc".to_string(), 1.0)]),
+            stop: "converged".into(),
+            details: Some(details),
+            posterior_draws: None,
+        };
+        let mut d = data();
+        d.calibration.stages = vec![serde_json::to_value(report).unwrap()];
+        d
+    }
+
+    #[test]
+    fn draws_come_only_from_a_positive_definite_gaussian_in_unit_coordinates() {
+        let d = with_variance_stage(1e4);
+        let (names, draws, what) = Context::new(&d).posterior(3).expect("a posterior");
+        assert_eq!(names, ["Gwsc"]);
+        assert!(what.contains("variance"), "{what}");
+        // sd in unit coordinates √(2/1e4) = 0.0141, i.e. 0.0212 in Gwsc
+        let n = draws.len() as f64;
+        let mean = draws.iter().map(|x| x[0]).sum::<f64>() / n;
+        let sd = (draws.iter().map(|x| (x[0] - mean).powi(2)).sum::<f64>() / n).sqrt();
+        assert!((mean - 1.0).abs() < 0.005 && (sd / 0.0212 - 1.0).abs() < 0.1, "mean {mean}, sd {sd}");
+        let d = with_variance_stage(-1e4);
+        let why = Context::new(&d).posterior(3).expect_err("no posterior from a saddle");
+        assert!(why.contains("not positive definite"), "{why}");
+    }
+
+    #[test]
+    fn the_best_fit_coverage_counts_points_inside_the_band_at_the_same_times() {
+        let panel = |model: Vec<(f64, f64)>, band: Option<Vec<(f64, f64, f64)>>| plots::StationPanel {
+            station: "TS1".into(),
+            x_m: None,
+            data: Vec::new(),
+            model,
+            band,
+        };
+        let inside = panel(vec![(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)], Some(vec![(0.0, 0.5, 1.5), (1.0, 2.5, 3.0)]));
+        let no_band = panel(vec![(0.0, 1.0)], None);
+        // (0 s inside, 1 s below the band; 2 s has no band)
+        assert_eq!(best_fit_coverage(&[inside.clone(), no_band.clone()]), Some(0.5));
+        assert_eq!(best_fit_coverage(&[no_band]), None);
+        let edge = panel(vec![(0.0, 1.5)], Some(vec![(0.0, 0.5, 1.5)]));
+        assert_eq!(best_fit_coverage(&[edge, inside]), Some(2.0 / 3.0));
     }
 
     #[test]
