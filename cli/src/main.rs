@@ -3,6 +3,7 @@
 mod bench;
 mod calibrate;
 mod client;
+mod compare;
 mod csv_text;
 mod fluid_source;
 mod healthcheck;
@@ -43,6 +44,8 @@ enum Command {
     Calibrate(calibrate::CalibrateArgs),
     /// Predict an untested case over the posterior of a calibration (median and 5–95 % bands).
     Predict(predict::PredictArgs),
+    /// Compare calibrations of the same data: best cost, AIC, BIC, Laplace evidence and Bayes factors.
+    Compare(compare::CompareArgs),
     /// List the model parameters: name, group, default, bounds, unit and meaning.
     Params(params_cmd::ParamsArgs),
     /// Measurements too heavy for the test suite (robustness over the parameter space).
@@ -125,6 +128,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(&args),
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Predict(args) => predict::run(&args),
+        Command::Compare(args) => compare::run(&args),
         Command::Params(args) => params_cmd::run(&args),
         Command::Serve(args) => serve::run(&args),
         Command::Work(args) => work::run(&args),

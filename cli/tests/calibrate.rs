@@ -134,6 +134,14 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes
+    // the comparison reads the folder's result.json (a folder against itself: equal criteria)
+    let od = out_dir.to_str().unwrap();
+    let compared: serde_json::Value = serde_json::from_str(&ok(&cryofit(&["compare", od, od, "--json"]))).unwrap();
+    let models = compared["models"].as_array().unwrap();
+    assert_eq!(models.len(), 2);
+    assert_eq!((models[0]["k"].as_u64(), models[0]["n_data"].as_u64()), (Some(2), result["data_points"].as_u64()));
+    assert!(models[0]["log_evidence"].is_f64(), "{compared}");
+    assert_eq!(models[1]["probability"].as_f64(), Some(0.5));
     let again = dir.join("again");
     ok(&cryofit(&[
         "simulate",
