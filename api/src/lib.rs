@@ -158,7 +158,8 @@ pub struct CreateCalibration {
     /// Ids of stored experiments to fit (at least one, each once).
     pub experiments: Vec<i64>,
     /// Free parameters with optional bounds and scale: registry names, or case fields
-    /// (`case.<path>`, bounds required; `experiments`: names of experiments that each get a copy).
+    /// (`case.<path>`, bounds required; `experiments`: names of experiments that each get a copy);
+    /// `start`: where the calibration starts, within the bounds.
     #[schema(value_type = Vec<Object>)]
     pub parameters: Vec<ParameterSpec>,
     /// Other parameters held at given values.

@@ -11,6 +11,7 @@
 //! lower = 0.3
 //! upper = 3.0
 //! scale = "log"              # or "linear" (default)
+//! start = 1.2                # optional: where it starts (default: registry default, case value)
 //! [[parameters]]             # a case field (apparatus parameter): bounds required
 //! name = "case.inlet.loss_coefficient"
 //! lower = 2.0
@@ -95,6 +96,10 @@ pub struct ParameterSpec {
     /// every experiment.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub experiments: Option<Vec<String>>,
+    /// Where the calibration starts, within the bounds (default: the registry default, or a case
+    /// field's value in its case); every copy of a per-experiment case field starts there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start: Option<f64>,
 }
 
 /// `scale = "linear" | "log"`.
@@ -448,6 +453,15 @@ impl CalibrationSpec {
                 ScaleName::Linear => Scale::Linear,
                 ScaleName::Log => Scale::Log,
             };
+            if let Some(start) = p.start
+                && !(start.is_finite() && lower <= start && start <= upper)
+            {
+                return Err(SpecError::OutOfRange {
+                    field: format!("parameters[{k}].start"),
+                    value: start,
+                    need: "must lie within the parameter's bounds",
+                });
+            }
             match self.copies(k)? {
                 None => free.push(FreeParameter { name: p.name.clone(), lower, upper, scale }),
                 Some(experiments) => free.extend(experiments.into_iter().map(|e| FreeParameter {
@@ -460,6 +474,24 @@ impl CalibrationSpec {
         }
         self.check_case_field_overlap()?;
         Ok(Space::new(free)?)
+    }
+
+    /// The given starting values (`parameters[k].start`) by free-parameter name: a per-experiment
+    /// case field's under each copy's name. Call after [`Self::validate`].
+    pub fn start_values(&self) -> BTreeMap<String, f64> {
+        let mut m = BTreeMap::new();
+        for (k, p) in self.parameters.iter().enumerate() {
+            let Some(v) = p.start else { continue };
+            match self.copies(k).ok().flatten() {
+                None => {
+                    m.insert(p.name.clone(), v);
+                }
+                Some(experiments) => m.extend(
+                    experiments.into_iter().map(|e| (apparatus::copy_name(&p.name, &self.experiments[e].label(e)), v)),
+                ),
+            }
+        }
+        m
     }
 
     /// The bounds of `parameters[k]` (`p`): checked against the registry's, or required for a
@@ -956,6 +988,29 @@ budget = 50
         assert_eq!(back.space().unwrap(), s);
         // a registry parameter's JSON has no `experiments` key (stored calibrations compare equal)
         assert!(!serde_json::to_string(&c.parameters[2]).unwrap().contains("experiments"));
+    }
+
+    #[test]
+    fn start_values_lie_within_the_bounds_and_reach_every_copy() {
+        let text = APPARATUS
+            .replace("experiments = [\"a\", \"runs/b.toml\"]", "experiments = [\"a\", \"runs/b.toml\"]\nstart = 7.5")
+            .replace("name = \"Gwsc\"", "name = \"Gwsc\"\nstart = 1.25");
+        let c = CalibrationSpec::from_toml(&text, "c.toml").unwrap();
+        let starts = c.start_values();
+        assert_eq!(
+            starts,
+            BTreeMap::from([
+                ("Gwsc".to_string(), 1.25),
+                ("case.inlet.loss_coefficient@a".to_string(), 7.5),
+                ("case.inlet.loss_coefficient@run-b".to_string(), 7.5),
+            ])
+        );
+        // the JSON twin keeps it; a parameter without one has no `start` key
+        let back: CalibrationSpec = serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
+        assert_eq!(back.start_values(), starts);
+        assert!(!serde_json::to_string(&c.parameters[1]).unwrap().contains("start"));
+        let e = CalibrationSpec::from_toml(&text.replace("start = 7.5", "start = 25.0"), "c.toml").unwrap_err();
+        assert!(e.to_string().contains("parameters[0].start = 25: must lie within the parameter's bounds"), "{e}");
     }
 
     #[test]

@@ -209,18 +209,25 @@ impl BuildError {
     }
 }
 
-/// Unit coordinates where a calibration over `experiments` starts: a registry parameter at its
-/// registry default, a case field at its value in the case of the first experiment it applies to
-/// ([`Model::own_value`]), anything else at the middle of its bounds; each clamped into its bounds.
-pub fn default_start(space: &crate::space::Space, experiments: &[Experiment]) -> Vec<f64> {
+/// Unit coordinates where a calibration over `experiments` starts: a parameter at its value in
+/// `given` (the calibration's `start` values, [`crate::config::CalibrationSpec::start_values`]),
+/// else a registry parameter at its registry default, a case field at its value in the case of
+/// the first experiment it applies to ([`Model::own_value`]), anything else at the middle of its
+/// bounds; each clamped into its bounds.
+pub fn default_start(
+    space: &crate::space::Space,
+    experiments: &[Experiment],
+    given: &std::collections::BTreeMap<String, f64>,
+) -> Vec<f64> {
     space
         .params()
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let registry = cryofit_solver::params::spec(&p.name).map(|s| s.default);
+            let registry = || cryofit_solver::params::spec(&p.name).map(|s| s.default);
             let own = || experiments.iter().find_map(|e| e.model.own_value(&p.name));
-            space.unit(i, registry.or_else(own).unwrap_or(0.5 * (p.lower + p.upper)))
+            let value = given.get(&p.name).copied().or_else(registry).or_else(own);
+            space.unit(i, value.unwrap_or(0.5 * (p.lower + p.upper)))
         })
         .collect()
 }

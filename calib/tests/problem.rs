@@ -112,8 +112,12 @@ fn case_fields_of_a_point_set_the_case_of_their_experiment_only() {
         },
     ])
     .unwrap();
-    let start = cryofit_calib::problem::default_start(&space, std::slice::from_ref(&e));
+    let start = cryofit_calib::problem::default_start(&space, std::slice::from_ref(&e), &BTreeMap::new());
     assert_eq!(start, vec![8.0 / 18.0, 0.5, space.unit(2, 1.0)]);
+    // a given start wins over the registry default and the case's value
+    let given = BTreeMap::from([("Gwsc".to_string(), 1.5), ("case.inlet.loss_coefficient".to_string(), 3.0)]);
+    let start = cryofit_calib::problem::default_start(&space, std::slice::from_ref(&e), &given);
+    assert_eq!((start[0], start[2]), (space.unit(0, 3.0), space.unit(2, 1.5)));
 
     // the runs: another experiment's value changes nothing, a shared one does
     let base = e.model.evaluate(&BTreeMap::new()).unwrap();

@@ -101,7 +101,7 @@ pub fn load(file: &Path) -> Result<Loaded> {
         experiments.push(exp);
     }
     let problem = Problem::new(experiments, spec.weights()).map_err(|e| anyhow!("{label}: {e}"))?;
-    let start = default_start(&space, &problem.experiments);
+    let start = default_start(&space, &problem.experiments, &spec.start_values());
     let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
     Ok(Loaded { spec, problem, pipeline })
 }

@@ -141,7 +141,7 @@ pub fn calibration(
         inv
     })?;
     let space = spec.space().map_err(|e| Invalid::from_message(e.to_string()))?;
-    let start = default_start(&space, &problem.experiments);
+    let start = default_start(&space, &problem.experiments, &spec.start_values());
     let pipeline = Pipeline::new(space, spec.stages.clone(), start, spec.seed).map_err(|m| {
         let mut inv = Invalid::from_message(m.to_string());
         if inv.field.is_none() {
