@@ -341,6 +341,19 @@ pub struct CalibrationSpec {
     /// Wall-clock limit of one simulation, s: a longer run is a failed evaluation.
     #[serde(default = "default_max_evaluation_s")]
     pub max_evaluation_s: f64,
+    /// Cross-validation (`cryofit crossval`): the stages of each refit without one experiment.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crossval: Option<CrossvalSpec>,
+}
+
+/// `[crossval]`: how `cryofit crossval` refits the calibration without each experiment in turn.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrossvalSpec {
+    /// The refit's stages, in order (warm-started from the joint optimum): typically a local or
+    /// global optimiser with a small budget, then a variance or MCMC stage for the prediction's
+    /// posterior-predictive band.
+    pub stages: Vec<StageSpec>,
 }
 
 /// Default per-evaluation wall-clock limit, s.
@@ -431,6 +444,17 @@ impl CalibrationSpec {
         }
         if self.stages.iter().try_fold(0usize, |t, s| t.checked_add(s.budget)).is_none() {
             return Err(SpecError::BudgetOverflow);
+        }
+        if let Some(cv) = &self.crossval {
+            if cv.stages.is_empty() {
+                return invalid("crossval.stages", "at least one stage is needed for the refits");
+            }
+            for (k, s) in cv.stages.iter().enumerate() {
+                s.validate(&format!("crossval.stages[{k}]"))?;
+            }
+            if cv.stages.iter().try_fold(0usize, |t, s| t.checked_add(s.budget)).is_none() {
+                return Err(SpecError::BudgetOverflow);
+            }
         }
         if !(self.max_evaluation_s.is_finite() && self.max_evaluation_s > 0.0) {
             return Err(SpecError::OutOfRange {

@@ -34,14 +34,14 @@ use crate::output::{chilldown_pairs, fmt_num, fmt_sig, probes_csv, write_outputs
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// The calibration file (TOML).
-    file: PathBuf,
+    pub(crate) file: PathBuf,
     /// Simulations run at once (in-process worker slots) [default: the number of cores].
     #[arg(long, value_name = "N")]
-    workers: Option<usize>,
+    pub(crate) workers: Option<usize>,
     /// Output directory, also holding the run's database (calibration.sqlite): re-running into it
     /// resumes an unfinished run [default: out/<calibration file stem>].
     #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
 }
 
 /// A calibration read from disk: its spec, its problem and its (not yet started) pipeline.

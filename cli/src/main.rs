@@ -4,6 +4,7 @@ mod bench;
 mod calibrate;
 mod client;
 mod compare;
+mod crossval;
 mod csv_text;
 mod fluid_source;
 mod healthcheck;
@@ -46,6 +47,8 @@ enum Command {
     Predict(predict::PredictArgs),
     /// Compare calibrations of the same data: best cost, AIC, BIC, Laplace evidence and Bayes factors.
     Compare(compare::CompareArgs),
+    /// Leave-one-out cross-validation of a joint calibration: refit without each experiment, predict it.
+    Crossval(crossval::CrossvalArgs),
     /// List the model parameters: name, group, default, bounds, unit and meaning.
     Params(params_cmd::ParamsArgs),
     /// Measurements too heavy for the test suite (robustness over the parameter space).
@@ -129,6 +132,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Calibrate(args) => calibrate::run(&args),
         Command::Predict(args) => predict::run(&args),
         Command::Compare(args) => compare::run(&args),
+        Command::Crossval(args) => crossval::run(&args),
         Command::Params(args) => params_cmd::run(&args),
         Command::Serve(args) => serve::run(&args),
         Command::Work(args) => work::run(&args),

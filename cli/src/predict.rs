@@ -31,23 +31,23 @@ use crate::output::{fmt_num, write_outputs};
 #[derive(Debug, Args)]
 pub struct PredictArgs {
     /// The case to predict (TOML).
-    case: PathBuf,
+    pub(crate) case: PathBuf,
     /// Output folder of a `cryofit calibrate` run (its result.json, and posterior.csv if an MCMC stage ran).
     #[arg(long, value_name = "DIR")]
-    from: PathBuf,
+    pub(crate) from: PathBuf,
     /// Parameter sets to run, drawn from the posterior.
     #[arg(long, value_name = "N", default_value_t = 100)]
-    samples: usize,
+    pub(crate) samples: usize,
     /// Seed of the draws.
     #[arg(long, value_name = "S", default_value_t = 0)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// Output directory [default: out/predict-<case file stem>].
     #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
     /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
     /// apply, other experiments' are skipped [default: the case file's stem].
     #[arg(long, value_name = "NAME")]
-    experiment: Option<String>,
+    pub(crate) experiment: Option<String>,
 }
 
 /// The parameter sets to run: posterior draws completed with the best and fixed values.

@@ -31,33 +31,33 @@ use cryofit_solver::driver::PROBE_QUANTITIES;
 #[derive(Debug, Args)]
 pub struct SimulateArgs {
     /// The case file (TOML).
-    case: PathBuf,
+    pub(crate) case: PathBuf,
     /// Output directory [default: out/<case file stem>].
     #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
     /// Set a registry parameter, or a case field by its `case.` name (`case.inlet.loss_coefficient=8`)
     /// (repeatable; overrides --params, the case's [parameters] and its fields).
     #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
-    set: Vec<String>,
+    pub(crate) set: Vec<String>,
     /// A TOML file of `name = number` values: registry parameters and case fields
     /// (`"case.inlet.loss_coefficient" = 8.0`), as `best.toml` of a calibration holds them.
     #[arg(long, value_name = "FILE.toml")]
-    params: Option<PathBuf>,
+    pub(crate) params: Option<PathBuf>,
     /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
     /// apply, other experiments' are skipped [default: the case file's stem].
     #[arg(long, value_name = "NAME")]
-    experiment: Option<String>,
+    pub(crate) experiment: Option<String>,
     /// Add Gaussian noise N(0, SIGMA) to every probe value of QUANTITY (repeatable).
     #[arg(long = "noise", value_name = "QUANTITY=SIGMA", allow_hyphen_values = true)]
-    noise: Vec<String>,
+    pub(crate) noise: Vec<String>,
     /// Seed of the noise generator: the same seed gives the same noise.
     #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true)]
-    seed: u64,
+    pub(crate) seed: u64,
     /// Measured data (time_s,station,x_m,quantity,value) to compare the run with: prints the RMS
     /// per station and quantity and the chilldown times of model and data, and adds them to
     /// summary.json as `fit`.
     #[arg(long, value_name = "DATA.csv")]
-    data: Option<PathBuf>,
+    pub(crate) data: Option<PathBuf>,
 }
 
 /// Runs a case and writes `probes.csv`, `profiles.csv` and `summary.json`.

@@ -80,6 +80,9 @@ pub fn spec_of(req: &api::CreateCalibration, experiments: &[api::Experiment]) ->
         weights: req.weights.clone(),
         stages: req.stages.clone(),
         max_evaluation_s: req.max_evaluation_s.unwrap_or(DEFAULT_MAX_EVALUATION_S),
+        // a file's [crossval] is `cryofit crossval`'s, run in-process: the coordinator runs the
+        // calibration itself
+        crossval: None,
     }
 }
 

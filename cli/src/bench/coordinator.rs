@@ -109,7 +109,14 @@ fn calibration(experiment: i64, evaluations: usize, generation: usize) -> api::C
         .iter()
         .filter(|p| p.group != "numerics" && p.upper > p.lower)
         .take(PARAMETERS)
-        .map(|p| ParameterSpec { name: p.name.to_string(), lower: None, upper: None, scale: None, experiments: None, start: None })
+        .map(|p| ParameterSpec {
+            name: p.name.to_string(),
+            lower: None,
+            upper: None,
+            scale: None,
+            experiments: None,
+            start: None,
+        })
         .collect();
     let mut stage = StageSpec::new(AlgorithmName::Annealing, evaluations);
     stage.population = Some(generation);

@@ -1,0 +1,454 @@
+//! `cryofit crossval CALIBRATION.toml [--from DIR] [--out DIR]`: leave-one-out cross-validation
+//! of a joint calibration. For each experiment in turn the calibration is refitted without it
+//! (the stages of the file's `[crossval]` table, warm-started from the joint optimum of `--from`)
+//! and the left-out experiment is predicted: its best-fit prediction (RMS per station, station-4
+//! chilldown against the data) and, where the refit has a posterior that holds, the 5–95 %
+//! posterior-predictive band and the share of the measurements it covers. It writes, in `--out`,
+//! a folder per fold (the refit's calibration file and outputs, the predictions), `crossval.json`,
+//! `crossval.csv` and a figure per fold (left-out data, prediction and band).
+//!
+//! Decisions:
+//! - The refit frees the joint calibration's last-stage parameters (after any screening stage
+//!   chose them) and starts them at the joint optimum; without `--from` it frees the file's
+//!   parameters from their starts. A per-experiment copy of a case field that belongs to the
+//!   left-out experiment is not refitted (nothing constrains it) and the prediction uses the
+//!   left-out case's own value: a new run's apparatus is not known in advance.
+//! - The band is that of the model runs at posterior draws (the parameters' uncertainty); its
+//!   coverage counts the measurements whose value lies between the band's 5 and 95 % at the
+//!   measurement's time (linear between the band's times).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use cryofit_calib::apparatus;
+use cryofit_calib::config::{CalibrationSpec, ExperimentRef, ParameterSpec};
+use cryofit_calib::data::Dataset;
+use cryofit_plots::{Figure, FitPanels, Plot, StationPanel};
+use serde_json::json;
+
+use crate::csv_text::CsvText;
+use crate::output::{fmt_num, write_outputs};
+
+/// Arguments of `cryofit crossval`.
+#[derive(Debug, Args)]
+pub struct CrossvalArgs {
+    /// The joint calibration file (TOML), with a `[crossval]` table giving the refits' stages.
+    file: PathBuf,
+    /// Output folder of the joint calibration: its best point starts each refit and its last
+    /// stage's free parameters are the ones refitted.
+    #[arg(long, value_name = "DIR")]
+    from: Option<PathBuf>,
+    /// Output directory [default: out/crossval-<calibration file stem>].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Simulations run at once [default: the number of cores].
+    #[arg(long, value_name = "N")]
+    workers: Option<usize>,
+    /// Posterior draws for each left-out prediction's band.
+    #[arg(long, value_name = "N", default_value_t = 40)]
+    samples: usize,
+    /// Seed of the posterior draws.
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    seed: u64,
+}
+
+/// The joint optimum: best values and the last stage's free parameters.
+struct Joint {
+    best: BTreeMap<String, f64>,
+    free: Vec<String>,
+}
+
+fn read_joint(dir: &Path) -> Result<Joint> {
+    let path = dir.join("result.json");
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!("--from {}: cannot read result.json (is it a `cryofit calibrate` output folder?)", dir.display())
+    })?;
+    let result: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let best: BTreeMap<String, f64> = serde_json::from_value(result["best_parameters"].clone())
+        .with_context(|| format!("{}: `best_parameters` is missing or not a table of numbers", path.display()))?;
+    let free: Vec<String> = result["stages"]
+        .as_array()
+        .and_then(|s| s.last())
+        .and_then(|s| serde_json::from_value(s["free"].clone()).ok())
+        .ok_or_else(|| anyhow!("{}: `stages` holds no stage with its free parameters", path.display()))?;
+    Ok(Joint { best, free })
+}
+
+/// The refit without experiment `left` (index): the other experiments (paths made absolute from
+/// `base`), the refitted parameters starting at the joint optimum, the `[crossval]` stages.
+fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &Path) -> Result<CalibrationSpec> {
+    let cv = spec.crossval.as_ref().ok_or_else(|| {
+        anyhow!(
+            "the calibration file has no [crossval] table: add the refits' stages, e.g.\n  [[crossval.stages]]\n  \
+             algorithm = \"cmaes\"\n  budget = 60\n  sigma = 0.1\n  [[crossval.stages]]\n  algorithm = \"variance\"\n  \
+             budget = 40"
+        )
+    })?;
+    let left_name = spec.experiments[left].label(left);
+    let space = spec.space()?;
+    let names: Vec<String> = space.names().map(str::to_owned).collect();
+    let absolute = |p: &str| base.join(p).display().to_string();
+    let experiments: Vec<ExperimentRef> = spec
+        .experiments
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != left)
+        .map(|(k, e)| ExperimentRef { case: absolute(&e.case), data: absolute(&e.data), name: Some(e.label(k)) })
+        .collect();
+    let mut parameters = Vec::new();
+    for p in &spec.parameters {
+        // the space names of this entry: itself, or one copy per listed experiment
+        let copies: Vec<&String> =
+            names.iter().filter(|n| *n == &p.name || n.starts_with(&format!("{}@", p.name))).collect();
+        let kept: Vec<&String> = copies
+            .into_iter()
+            .filter(|n| joint.is_none_or(|j| j.free.contains(n)))
+            .filter(|n| !n.ends_with(&format!("@{left_name}")))
+            .collect();
+        let Some(first) = kept.first() else { continue };
+        let experiments = p
+            .experiments
+            .as_ref()
+            .map(|_| kept.iter().filter_map(|n| n.split_once('@').map(|(_, e)| e.to_string())).collect::<Vec<_>>());
+        let start = joint.and_then(|j| j.best.get(*first).copied()).or(p.start);
+        parameters.push(ParameterSpec { experiments, start, ..p.clone() });
+    }
+    if parameters.is_empty() {
+        bail!("without experiment `{left_name}` no free parameter is left to refit");
+    }
+    // the joint's values of parameters it did not refit (screened out) stay as they were: fixed
+    let mut fixed = spec.fixed.clone();
+    if let Some(j) = joint {
+        for (name, &v) in &j.best {
+            let free = parameters.iter().any(|p| &p.name == name || name.starts_with(&format!("{}@", p.name)));
+            if !free && !apparatus::is_case_name(name) && !fixed.contains_key(name) {
+                fixed.insert(name.clone(), v);
+            }
+        }
+    }
+    let fold = CalibrationSpec {
+        name: format!("{} without {left_name}", spec.name),
+        description: None,
+        experiments,
+        parameters,
+        fixed,
+        stages: cv.stages.clone(),
+        crossval: None,
+        ..spec.clone()
+    };
+    fold.validate().map_err(|e| anyhow!("the refit without `{left_name}`: {e}"))?;
+    Ok(fold)
+}
+
+/// What one fold found.
+#[derive(Debug, Clone)]
+struct FoldResult {
+    experiment: String,
+    /// RMS per station of the best-fit prediction, K.
+    rms: BTreeMap<String, f64>,
+    /// Station-4 (last station's) chilldown of data and prediction, s.
+    chilldown: Option<(String, Option<f64>, Option<f64>)>,
+    /// Covered and total measurements, or why there is no band.
+    coverage: Result<(usize, usize), String>,
+    refit_cost: Option<f64>,
+}
+
+/// Linear interpolation of `(t, lo, hi)` rows (sorted by time) at `t`; `None` outside.
+fn band_at(band: &[(f64, f64, f64)], t: f64) -> Option<(f64, f64)> {
+    let k = band.partition_point(|r| r.0 < t);
+    if k < band.len() && band[k].0 == t {
+        return Some((band[k].1, band[k].2));
+    }
+    if k == 0 || k >= band.len() {
+        return None;
+    }
+    let (a, b) = (band[k - 1], band[k]);
+    let w = (t - a.0) / (b.0 - a.0);
+    Some((a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2)))
+}
+
+/// Per station, the band's rows `(time, 5 %, 95 %)` sorted by time.
+type Bands = BTreeMap<String, Vec<(f64, f64, f64)>>;
+
+/// The band per station (wall temperature) from a `bands.csv`.
+fn read_bands(path: &Path) -> Result<Bands> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let mut m: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
+    for record in reader.records() {
+        let r = record.with_context(|| format!("{}: unreadable row", path.display()))?;
+        if r.get(3) != Some("wall_temperature_k") {
+            continue;
+        }
+        let num = |i: usize| -> Result<f64> {
+            r.get(i).and_then(|v| v.parse().ok()).ok_or_else(|| anyhow!("{}: a row without numbers", path.display()))
+        };
+        m.entry(r.get(1).unwrap_or_default().to_string()).or_default().push((num(0)?, num(4)?, num(6)?));
+    }
+    for v in m.values_mut() {
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    Ok(m)
+}
+
+/// The measured wall temperatures inside the band: (covered, total).
+fn coverage(data: &Dataset, bands: &Bands) -> (usize, usize) {
+    let (mut covered, mut total) = (0, 0);
+    for ((station, quantity), s) in &data.series {
+        let Some(band) = bands.get(station).filter(|_| quantity == "wall_temperature_k") else { continue };
+        for (&t, &v) in s.times.iter().zip(&s.values) {
+            if let Some((lo, hi)) = band_at(band, t) {
+                total += 1;
+                if (lo..=hi).contains(&v) {
+                    covered += 1;
+                }
+            }
+        }
+    }
+    (covered, total)
+}
+
+/// Runs `cryofit crossval`.
+pub fn run(args: &CrossvalArgs) -> Result<()> {
+    let label = args.file.display().to_string();
+    let text = std::fs::read_to_string(&args.file).with_context(|| format!("cannot read {label}"))?;
+    let spec = CalibrationSpec::from_toml(&text, &label)?;
+    if spec.experiments.len() < 2 {
+        bail!("{label}: cross-validation leaves one experiment out in turn and needs at least two; it has one");
+    }
+    let joint = args.from.as_deref().map(read_joint).transpose()?;
+    let base = args.file.parent().unwrap_or(Path::new(".")).canonicalize().unwrap_or_else(|_| PathBuf::from("."));
+    let folds: Vec<CalibrationSpec> = (0..spec.experiments.len())
+        .map(|k| fold_spec(&spec, k, joint.as_ref(), &base))
+        .collect::<Result<_>>()
+        .map_err(|e| anyhow!("{label}: {e:#}"))?;
+    let out_dir = args.out.clone().unwrap_or_else(|| {
+        let stem = args.file.file_stem().map_or_else(|| "calibration".into(), |s| s.to_string_lossy().into_owned());
+        Path::new("out").join(format!("crossval-{stem}"))
+    });
+    let mut results = Vec::new();
+    let mut figures = Vec::new();
+    for (k, fold) in folds.iter().enumerate() {
+        let name = spec.experiments[k].label(k);
+        println!("fold {} of {}: refit without `{name}`", k + 1, folds.len());
+        let dir = out_dir.join(format!("without-{name}"));
+        let file = dir.join("calibration.toml");
+        let toml_text = toml::to_string(fold).context("cannot write the refit's calibration file")?;
+        write_outputs(&dir, &[("calibration.toml", format!("# cryofit crossval: {}\n{toml_text}", fold.name))])?;
+        let fit_dir = dir.join("refit");
+        crate::calibrate::run(&crate::calibrate::CalibrateArgs {
+            file: file.clone(),
+            workers: args.workers,
+            out: Some(fit_dir.clone()),
+        })?;
+        let (result, figure) = predict_left_out(&spec, k, &base, &dir, &fit_dir, args)?;
+        results.push(result);
+        figures.push(figure);
+    }
+    write_summary(&out_dir, &results, &figures)?;
+    print_table(&results);
+    println!("  wrote crossval.json, crossval.csv and the figures to {}", out_dir.display());
+    Ok(())
+}
+
+/// Predicts experiment `k` from the refit in `fit_dir`: best fit and, where possible, the band.
+fn predict_left_out(
+    spec: &CalibrationSpec,
+    k: usize,
+    base: &Path,
+    dir: &Path,
+    fit_dir: &Path,
+    args: &CrossvalArgs,
+) -> Result<(FoldResult, Figure)> {
+    let e = &spec.experiments[k];
+    let name = e.label(k);
+    let (case, data_path) = (base.join(&e.case), base.join(&e.data));
+    let best_dir = dir.join("prediction-best");
+    crate::simulate::run(&crate::simulate::SimulateArgs {
+        case: case.clone(),
+        out: Some(best_dir.clone()),
+        set: Vec::new(),
+        params: Some(fit_dir.join("best.toml")),
+        experiment: Some(name.clone()),
+        noise: Vec::new(),
+        seed: 0,
+        data: Some(data_path.clone()),
+    })?;
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(best_dir.join("summary.json")).context("cannot read the prediction's summary.json")?,
+    )?;
+    let rms = summary["fit"]["series"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter(|s| s["quantity"] == "wall_temperature_k")
+                .filter_map(|s| Some((s["station"].as_str()?.to_string(), s["rms"].as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let chilldown = summary["fit"]["chilldown"].as_object().and_then(|m| {
+        let (station, v) = m.iter().max_by(|a, b| a.0.cmp(b.0))?;
+        Some((station.clone(), v["data_s"].as_f64(), v["model_s"].as_f64()))
+    });
+    let band_dir = dir.join("prediction-band");
+    let band = crate::predict::run(&crate::predict::PredictArgs {
+        case,
+        from: fit_dir.to_path_buf(),
+        samples: args.samples,
+        seed: args.seed,
+        out: Some(band_dir.clone()),
+        experiment: Some(name.clone()),
+    })
+    .and_then(|()| read_bands(&band_dir.join("bands.csv")));
+    let data_label = data_path.display().to_string();
+    let data = Dataset::from_csv(
+        &std::fs::read_to_string(&data_path).with_context(|| format!("cannot read {data_label}"))?,
+        &data_label,
+    )?;
+    let coverage = match &band {
+        Ok(b) => Ok(coverage(&data, b)),
+        Err(why) => Err(format!("{why:#}")),
+    };
+    let refit: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fit_dir.join("result.json")).unwrap_or_default())
+            .unwrap_or_default();
+    let probes_path = best_dir.join("probes.csv");
+    let probes = Dataset::from_csv(
+        &std::fs::read_to_string(&probes_path).with_context(|| format!("cannot read {}", probes_path.display()))?,
+        &probes_path.display().to_string(),
+    )?;
+    let panels = data
+        .series
+        .iter()
+        .filter(|((_, q), _)| q == "wall_temperature_k")
+        .map(|((station, q), s)| StationPanel {
+            station: station.clone(),
+            x_m: None,
+            data: s.times.iter().copied().zip(s.values.iter().copied()).collect(),
+            model: probes
+                .series
+                .get(&(station.clone(), q.clone()))
+                .map(|m| m.times.iter().copied().zip(m.values.iter().copied()).collect())
+                .unwrap_or_default(),
+            band: band.as_ref().ok().and_then(|b| b.get(station).cloned()),
+        })
+        .collect();
+    let note = match &coverage {
+        Ok((c, t)) if *t > 0 => format!("band covers {:.0} % of the measurements", 100.0 * *c as f64 / *t as f64),
+        Ok(_) => "the band and the measurements do not overlap in time".into(),
+        Err(_) => "no band: the refit has no posterior that holds".into(),
+    };
+    let figure = Figure {
+        name: format!("crossval-{}", name.replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "-")),
+        title: format!("{name}, predicted without it"),
+        plot: Ok(Plot::Fit(FitPanels {
+            title: format!("{}: {name} predicted by the refit without it — {note}", spec.name),
+            value_label: "wall temperature (K)".into(),
+            value_scale: 1.0,
+            band_label: format!("5–95 % posterior predictive ({} runs)", args.samples),
+            panels,
+        })),
+    };
+    let result = FoldResult { experiment: name, rms, chilldown, coverage, refit_cost: refit["best_cost"].as_f64() };
+    Ok((result, figure))
+}
+
+fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> Result<()> {
+    let folds: Vec<serde_json::Value> = results
+        .iter()
+        .map(|r| {
+            let (station, data, model) = r.chilldown.clone().unwrap_or_default();
+            let error = data.zip(model).map(|(d, m)| (m - d) / d);
+            json!({
+                "left_out": r.experiment, "refit_cost": r.refit_cost, "rms_k": r.rms,
+                "chilldown": {"station": station, "data_s": data, "model_s": model, "relative_error": error},
+                "band": match &r.coverage {
+                    Ok((c, t)) => json!({"covered": c, "measurements": t}),
+                    Err(why) => json!({"none": why}),
+                },
+            })
+        })
+        .collect();
+    let errors: Vec<f64> = results
+        .iter()
+        .filter_map(|r| r.chilldown.as_ref().and_then(|(_, d, m)| Some(((*m)? - (*d)?).abs() / (*d)?)))
+        .collect();
+    let (covered, total) =
+        results.iter().filter_map(|r| r.coverage.as_ref().ok()).fold((0, 0), |(a, b), (c, t)| (a + c, b + t));
+    let summary = json!({
+        "folds": folds,
+        "mean_absolute_chilldown_error": (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
+        "band_coverage": (total > 0).then(|| covered as f64 / total as f64),
+        "folds_with_band": results.iter().filter(|r| r.coverage.is_ok()).count(),
+    });
+    let mut csv = CsvText::new([
+        "left_out",
+        "station",
+        "rms_k",
+        "chilldown_data_s",
+        "chilldown_model_s",
+        "covered",
+        "measurements",
+    ])?;
+    for r in results {
+        let (cs, d, m) = r.chilldown.clone().unwrap_or_default();
+        let (c, t) =
+            r.coverage.as_ref().map_or((String::new(), String::new()), |(c, t)| (c.to_string(), t.to_string()));
+        for (station, rms) in &r.rms {
+            let last = *station == cs;
+            let opt = |v: Option<f64>| if last { v.map(fmt_num).unwrap_or_default() } else { String::new() };
+            csv.row([r.experiment.as_str(), station, &fmt_num(*rms), &opt(d), &opt(m), &c, &t])?;
+        }
+    }
+    let mut files: Vec<(String, Vec<u8>)> = vec![
+        ("crossval.json".into(), (serde_json::to_string_pretty(&summary)? + "\n").into_bytes()),
+        ("crossval.csv".into(), csv.finish()?.into_bytes()),
+    ];
+    for f in figures {
+        if let Ok(p) = &f.plot {
+            files.push((format!("{}.svg", f.name), p.svg().map_err(|e| anyhow!("{}: {e}", f.name))?.into_bytes()));
+            files.push((format!("{}.png", f.name), p.png().map_err(|e| anyhow!("{}: {e}", f.name))?));
+        }
+    }
+    write_outputs(out_dir, &files)
+}
+
+fn print_table(results: &[FoldResult]) {
+    println!("cross-validation: each experiment predicted by the refit without it");
+    for r in results {
+        let rms: Vec<String> = r.rms.iter().map(|(s, v)| format!("{s} {v:.1}")).collect();
+        let chill = match &r.chilldown {
+            Some((s, Some(d), Some(m))) => {
+                format!("{s} chilldown {m:.1} s against {d:.1} s ({:+.1} %)", 100.0 * (m - d) / d)
+            }
+            Some((s, d, m)) => {
+                let t = |v: &Option<f64>| v.map_or_else(|| "not reached".to_string(), |x| format!("{x:.1} s"));
+                format!("{s} chilldown: model {}, data {}", t(m), t(d))
+            }
+            None => "no chilldown".into(),
+        };
+        let band = match &r.coverage {
+            Ok((c, t)) if *t > 0 => format!("band covers {c} of {t} ({:.0} %)", 100.0 * *c as f64 / *t as f64),
+            Ok(_) => "band and data do not overlap".into(),
+            Err(why) => format!("no band ({why})"),
+        };
+        println!("  {}: RMS (K) {}; {chill}; {band}", r.experiment, rms.join(", "));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_band_is_read_between_its_times() {
+        let band = [(0.0, 1.0, 3.0), (1.0, 3.0, 5.0)];
+        assert_eq!(band_at(&band, 0.5), Some((2.0, 4.0)));
+        assert_eq!(band_at(&band, 1.0), Some((3.0, 5.0)));
+        assert_eq!(band_at(&band, 1.5), None);
+        assert_eq!(band_at(&band, -0.1), None);
+    }
+}

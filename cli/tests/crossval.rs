@@ -1,0 +1,163 @@
+//! `cryofit crossval` end to end on a CI-sized pair of runs: a joint calibration of two drive
+//! pressures of the same line (twin data), then each run left out in turn, refitted without and
+//! predicted; and the errors of a calibration file that cannot be cross-validated.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn cryofit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cryofit-crossval-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The NBS subcooled case cut to CI size (10 cells, 160 s) at drive pressure `p` (Pa), and its
+/// twin data: wall temperatures simulated at Gwsc = 0.8, every 2 s.
+fn run_of(dir: &Path, name: &str, p: &str) {
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+    let original = std::fs::read_to_string(src).unwrap();
+    let text = original
+        .replace("cells = 30", "cells = 10")
+        .replace("end_s = 1000.0", "end_s = 160.0")
+        .replace("output_interval_s = 1.0", "output_interval_s = 2.0")
+        .replace("profile_interval_s = 10.0", "profile_interval_s = 160.0")
+        .replace("pressure_pa = 508652.0", &format!("pressure_pa = {p}"));
+    for field in ["cells = 10", "end_s = 160.0", "output_interval_s = 2.0", &format!("pressure_pa = {p}")] {
+        assert!(text.contains(field), "the NBS case changed: update this test ({field})");
+    }
+    let case = dir.join(format!("{name}.toml"));
+    std::fs::write(&case, text).unwrap();
+    let truth = dir.join(format!("truth-{name}"));
+    ok(&cryofit(&["simulate", case.to_str().unwrap(), "--set", "Gwsc=0.8", "--out", truth.to_str().unwrap()]));
+    let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
+    let mut lines = probes.lines();
+    let mut data = String::from(lines.next().unwrap());
+    data.push('\n');
+    for l in lines.filter(|l| l.contains(",wall_temperature_k,")) {
+        data.push_str(l);
+        data.push('\n');
+    }
+    std::fs::write(dir.join(format!("{name}-data.csv")), data).unwrap();
+}
+
+const JOINT: &str = r#"
+name = "pair"
+seed = 5
+[[experiments]]
+case = "high.toml"
+data = "high-data.csv"
+[[experiments]]
+case = "low.toml"
+data = "low-data.csv"
+[[parameters]]
+name = "Gwsc"
+scale = "log"
+[weights]
+wall_temperature_k = { weight = 1.0, sigma = 3.0 }
+[[stages]]
+algorithm = "cmaes"
+budget = 16
+population = 4
+sigma = 0.2
+[[stages]]
+algorithm = "variance"
+budget = 14
+step = 0.06
+restarts = 1
+[[crossval.stages]]
+algorithm = "cmaes"
+budget = 8
+population = 4
+sigma = 0.05
+[[crossval.stages]]
+algorithm = "variance"
+budget = 14
+step = 0.06
+restarts = 1
+"#;
+
+#[test]
+fn each_run_is_refitted_without_itself_and_predicted() {
+    let dir = scratch("pair");
+    run_of(&dir, "high", "508652.0");
+    run_of(&dir, "low", "400000.0");
+    let file = dir.join("pair.toml");
+    std::fs::write(&file, JOINT).unwrap();
+    let joint = dir.join("joint");
+    ok(&cryofit(&["calibrate", file.to_str().unwrap(), "--workers", "2", "--out", joint.to_str().unwrap()]));
+    let best: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(joint.join("result.json")).unwrap()).unwrap();
+    let best_gwsc = best["best_parameters"]["Gwsc"].as_f64().unwrap();
+
+    let cv = dir.join("cv");
+    let stdout = ok(&cryofit(&[
+        "crossval",
+        file.to_str().unwrap(),
+        "--from",
+        joint.to_str().unwrap(),
+        "--out",
+        cv.to_str().unwrap(),
+        "--workers",
+        "2",
+        "--samples",
+        "6",
+    ]));
+    println!("{stdout}");
+    assert!(stdout.contains("cross-validation: each experiment predicted by the refit without it"), "{stdout}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cv.join("crossval.json")).unwrap()).unwrap();
+    let folds = summary["folds"].as_array().unwrap();
+    assert_eq!(folds.len(), 2);
+    for (fold, (name, other)) in folds.iter().zip([("high", "low"), ("low", "high")]) {
+        assert_eq!(fold["left_out"], name);
+        assert_eq!(fold["rms_k"].as_object().unwrap().len(), 4, "{fold}");
+        assert_eq!(fold["chilldown"]["station"], "TS4");
+        // the refit: the other run only, starting at the joint optimum
+        let refit = std::fs::read_to_string(cv.join(format!("without-{name}/calibration.toml"))).unwrap();
+        assert!(refit.contains(&format!("{other}.toml")) && !refit.contains(&format!("{name}.toml")), "{refit}");
+        assert!(refit.contains(&format!("start = {best_gwsc}")), "{refit}");
+        // twin data, one parameter: the left-out run is predicted closely
+        for (station, rms) in fold["rms_k"].as_object().unwrap() {
+            assert!(rms.as_f64().unwrap() < 10.0, "{name} {station}: RMS {rms}");
+        }
+        // a band with its coverage, or the reason there is none
+        let band = &fold["band"];
+        assert!(band["measurements"].as_u64().is_some_and(|n| n > 0) || band["none"].is_string(), "{band}");
+        let figure = cv.join(format!("crossval-{name}.svg"));
+        assert!(std::fs::read_to_string(&figure).unwrap().contains("predicted by the refit without it"));
+    }
+    assert!(summary["mean_absolute_chilldown_error"].as_f64().is_some(), "{summary}");
+    let csv = std::fs::read_to_string(cv.join("crossval.csv")).unwrap();
+    assert!(csv.starts_with("left_out,station,rms_k,chilldown_data_s,chilldown_model_s,covered,measurements\n"));
+    assert_eq!(csv.lines().count(), 1 + 8);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_file_that_cannot_be_cross_validated_is_refused_with_the_reason() {
+    let dir = scratch("refused");
+    let file = dir.join("pair.toml");
+    let without = JOINT.split("[[crossval.stages]]").next().unwrap().to_string();
+    std::fs::write(&file, &without).unwrap();
+    // (the cases are not read before the file's own checks pass)
+    let out = cryofit(&["crossval", file.to_str().unwrap(), "--out", dir.join("cv").to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no [crossval] table") && err.contains("[[crossval.stages]]"), "{err}");
+    let one = without.replace("[[experiments]]\ncase = \"low.toml\"\ndata = \"low-data.csv\"\n", "");
+    std::fs::write(&file, one).unwrap();
+    let out = cryofit(&["crossval", file.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("needs at least two; it has one"));
+    assert!(!dir.join("cv").exists(), "nothing written for a refused file");
+    std::fs::remove_dir_all(&dir).ok();
+}
