@@ -3,49 +3,16 @@
 //! coefficient; `best.toml` back through `cryofit simulate --params` and `cryofit predict`; bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn cryofit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// The one-line error of a command that must fail.
-fn refused(out: &Output) -> String {
-    assert!(!out.status.success(), "succeeded: {}", String::from_utf8_lossy(&out.stdout));
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    err
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cryofit-apparatus-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn read_json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
+mod common;
+use common::{cryofit, ok, read_json, refused, small_nbs_case};
 
 /// The NBS subcooled case cut to CI size: 10 cells, 220 s (the front passes every station), with
 /// the case file's loss coefficient of 10.
 fn small_case(dir: &Path) -> PathBuf {
-    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
-    let text = std::fs::read_to_string(src)
-        .unwrap()
-        .replace("cells = 30", "cells = 10")
-        .replace("end_s = 1000.0", "end_s = 220.0")
-        .replace("output_interval_s = 1.0", "output_interval_s = 2.0")
-        .replace("profile_interval_s = 10.0", "profile_interval_s = 220.0");
+    let path = small_nbs_case(dir, "case.toml", 220.0, &[]);
+    let text = std::fs::read_to_string(&path).unwrap();
     assert!(text.contains("loss_coefficient = 10.0"), "the case's loss coefficient changed: update this test");
-    let path = dir.join("case.toml");
-    std::fs::write(&path, text).unwrap();
     path
 }
 
@@ -84,7 +51,7 @@ restarts = 1
 /// carry the case field by its `case.` name (best.toml reproduces the best fit).
 #[test]
 fn twin_experiment_recovers_a_known_loss_coefficient() {
-    let dir = scratch("twin");
+    let dir = common::scratch("apparatus", "twin");
     let case = small_case(&dir);
     let truth = dir.join("truth");
     let k = format!("case.inlet.loss_coefficient={TRUE_K}");
@@ -191,7 +158,7 @@ fn joint(dir: &Path) -> PathBuf {
 /// fit, and `cryofit predict` applies the shared value and the case's own experiment's copy.
 #[test]
 fn a_calibration_frees_shared_and_per_experiment_case_fields() {
-    let dir = scratch("joint");
+    let dir = common::scratch("apparatus", "joint");
     let file = joint(&dir);
     let out_dir = dir.join("out");
     let stdout =
@@ -273,7 +240,7 @@ fn a_calibration_frees_shared_and_per_experiment_case_fields() {
 /// Bad case fields: one line naming the file, the parameter or field and the value, nothing run.
 #[test]
 fn bad_case_fields_are_refused_naming_file_field_and_value() {
-    let dir = scratch("bad");
+    let dir = common::scratch("apparatus", "bad");
     joint(&dir);
     let cases = [
         (

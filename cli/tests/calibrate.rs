@@ -2,37 +2,10 @@
 //! known parameter values plus noise, then fitted), predictions over its posterior, and bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
-fn cryofit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cryofit-calibrate-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// The NBS subcooled case cut to CI size: 10 cells, 220 s (the front passes every station).
-fn small_case(dir: &Path) -> PathBuf {
-    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
-    let text = std::fs::read_to_string(src)
-        .unwrap()
-        .replace("cells = 30", "cells = 10")
-        .replace("end_s = 1000.0", "end_s = 220.0")
-        .replace("output_interval_s = 1.0", "output_interval_s = 2.0")
-        .replace("profile_interval_s = 10.0", "profile_interval_s = 220.0");
-    let path = dir.join("case.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
+mod common;
+use common::{cryofit, ok, small_nbs_case, wall_data};
 
 /// True values of the twin experiment: the dry-wall gas convection scale (the vapour's pre-cooling
 /// ahead of the front) and the wall mass-transfer scale (the front's speed), two effects the wall
@@ -63,14 +36,10 @@ fn twin_data(dir: &Path, case: &Path) -> PathBuf {
         truth.to_str().unwrap(),
     ]));
     let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
-    let mut lines = probes.lines();
-    let mut data = format!("# twin data: simulated at hg0sc = {TRUE_HG0SC}, Gwsc = {TRUE_GWSC}, noise 1 K\n");
-    data.push_str(lines.next().unwrap());
-    data.push('\n');
-    for l in lines.filter(|l| l.contains(",wall_temperature_k,")) {
-        data.push_str(l);
-        data.push('\n');
-    }
+    let data = format!(
+        "# twin data: simulated at hg0sc = {TRUE_HG0SC}, Gwsc = {TRUE_GWSC}, noise 1 K\n{}",
+        wall_data(&probes)
+    );
     let path = dir.join("data.csv");
     std::fs::write(&path, data).unwrap();
     path
@@ -107,8 +76,8 @@ restarts = 1
 /// both true values; the outputs are complete and best.toml reproduces the best fit.
 #[test]
 fn twin_experiment_recovers_the_truth_and_predicts() {
-    let dir = scratch("twin");
-    let case = small_case(&dir);
+    let dir = common::scratch("calibrate", "twin");
+    let case = small_nbs_case(&dir, "case.toml", 220.0, &[]);
     twin_data(&dir, &case);
     let file = dir.join("twin.toml");
     std::fs::write(&file, TWIN).unwrap();
@@ -187,8 +156,8 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
 /// Bad calibration files: one line naming the file and the field, non-zero exit, nothing written.
 #[test]
 fn bad_calibration_files_are_refused_with_the_field_named() {
-    let dir = scratch("bad");
-    let case = small_case(&dir);
+    let dir = common::scratch("calibrate", "bad");
+    let case = small_nbs_case(&dir, "case.toml", 220.0, &[]);
     std::fs::write(
         dir.join("data.csv"),
         "time_s,station,x_m,quantity,value\n0,TS1,6.1,wall_temperature_k,290\n10,TS9,1,wall_temperature_k,280\n",
@@ -281,7 +250,7 @@ fn stored_evaluations(db: &Path) -> Option<i64> {
 /// again; a different calibration into it is refused.
 #[test]
 fn killed_calibration_resumes_bit_identically() {
-    let dir = scratch("resume");
+    let dir = common::scratch("calibrate", "resume");
     let file = tiny_calibration(&dir);
     let file_arg = file.to_str().unwrap();
     let reference = dir.join("reference");

@@ -2,51 +2,19 @@
 //! pressures of the same line (twin data), then each run left out in turn, refitted without and
 //! predicted; and the errors of a calibration file that cannot be cross-validated.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
-fn cryofit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).env_remove("CRYOFIT_DATA_DIR").output().unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cryofit-crossval-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{cryofit, ok, scratch, small_nbs_case, wall_data};
 
 /// The NBS subcooled case cut to CI size (10 cells, 160 s) at drive pressure `p` (Pa), and its
 /// twin data: wall temperatures simulated at Gwsc = 0.8, every 2 s.
 fn run_of(dir: &Path, name: &str, p: &str) {
-    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
-    let original = std::fs::read_to_string(src).unwrap();
-    let text = original
-        .replace("cells = 30", "cells = 10")
-        .replace("end_s = 1000.0", "end_s = 160.0")
-        .replace("output_interval_s = 1.0", "output_interval_s = 2.0")
-        .replace("profile_interval_s = 10.0", "profile_interval_s = 160.0")
-        .replace("pressure_pa = 508652.0", &format!("pressure_pa = {p}"));
-    for field in ["cells = 10", "end_s = 160.0", "output_interval_s = 2.0", &format!("pressure_pa = {p}")] {
-        assert!(text.contains(field), "the NBS case changed: update this test ({field})");
-    }
-    let case = dir.join(format!("{name}.toml"));
-    std::fs::write(&case, text).unwrap();
+    let pressure = format!("pressure_pa = {p}");
+    let case = small_nbs_case(dir, &format!("{name}.toml"), 160.0, &[("pressure_pa = 508652.0", &pressure)]);
     let truth = dir.join(format!("truth-{name}"));
     ok(&cryofit(&["simulate", case.to_str().unwrap(), "--set", "Gwsc=0.8", "--out", truth.to_str().unwrap()]));
-    let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
-    let mut lines = probes.lines();
-    let mut data = String::from(lines.next().unwrap());
-    data.push('\n');
-    for l in lines.filter(|l| l.contains(",wall_temperature_k,")) {
-        data.push_str(l);
-        data.push('\n');
-    }
+    let data = wall_data(&std::fs::read_to_string(truth.join("probes.csv")).unwrap());
     std::fs::write(dir.join(format!("{name}-data.csv")), data).unwrap();
 }
 
@@ -88,7 +56,7 @@ restarts = 1
 
 #[test]
 fn each_run_is_refitted_without_itself_and_predicted() {
-    let dir = scratch("pair");
+    let dir = scratch("crossval", "pair");
     run_of(&dir, "high", "508652.0");
     run_of(&dir, "low", "400000.0");
     let file = dir.join("pair.toml");
@@ -145,7 +113,7 @@ fn each_run_is_refitted_without_itself_and_predicted() {
 
 #[test]
 fn a_file_that_cannot_be_cross_validated_is_refused_with_the_reason() {
-    let dir = scratch("refused");
+    let dir = scratch("crossval", "refused");
     let file = dir.join("pair.toml");
     let without = JOINT.split("[[crossval.stages]]").next().unwrap().to_string();
     std::fs::write(&file, &without).unwrap();

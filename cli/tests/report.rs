@@ -2,28 +2,9 @@
 //! of stages, notes for the figures a shorter calibration cannot have, and bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn cryofit(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cryofit"))
-        .args(args)
-        .env_remove("CRYOFIT_DATA_DIR")
-        .env_remove("CRYOFIT_COORDINATOR")
-        .output()
-        .unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("cryofit-report-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod common;
+use common::{cryofit, ok};
 
 /// The tiny case of the `tests` crate (NBS subcooled, 5 cells, 8 s) calibrated with `stages`.
 fn calibrate(dir: &Path, stages: &str) -> PathBuf {
@@ -64,7 +45,7 @@ walkers = 8
 
 #[test]
 fn every_figure_of_a_calibration_with_every_kind_of_stage() {
-    let dir = scratch("all");
+    let dir = common::scratch("report", "all");
     let out = calibrate(&dir, ALL_STAGES);
     let report = dir.join("report");
     let text = ok(&cryofit(&[
@@ -111,7 +92,7 @@ fn every_figure_of_a_calibration_with_every_kind_of_stage() {
 
 #[test]
 fn missing_inputs_are_noted_and_bad_sources_refused() {
-    let dir = scratch("short");
+    let dir = common::scratch("report", "short");
     let out = calibrate(&dir, "[[stages]]\nalgorithm = \"cmaes\"\nbudget = 12\npopulation = 6\n");
     let report = dir.join("report");
     let text = ok(&cryofit(&["report", &out.display().to_string(), "--out", &report.display().to_string()]));
