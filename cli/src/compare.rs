@@ -22,6 +22,8 @@ use cryofit_calib::inference::{aic, bic, laplace_log_evidence};
 use cryofit_calib::pipeline::StageReport;
 use serde_json::json;
 
+use crate::output::read_result_json;
+
 /// Arguments of `cryofit compare`.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
@@ -52,12 +54,7 @@ struct Fit {
 
 /// Reads one output folder's `result.json`.
 fn read_fit(dir: &Path) -> Result<Fit> {
-    let path = dir.join("result.json");
-    let text = std::fs::read_to_string(&path).with_context(|| {
-        format!("{}: cannot read result.json (is it a `cryofit calibrate` output folder?)", dir.display())
-    })?;
-    let result: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let (path, result) = read_result_json(dir, "")?;
     let field = |name: &str| anyhow!("{}: `{name}` is missing or not a number", path.display());
     let s_min = result["best_cost"].as_f64().ok_or_else(|| field("best_cost"))?;
     let n_data = result["data_points"].as_u64().ok_or_else(|| field("data_points"))? as usize;

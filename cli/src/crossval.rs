@@ -29,7 +29,7 @@ use cryofit_plots::{Figure, FitPanels, Plot, StationPanel};
 use serde_json::json;
 
 use crate::csv_text::CsvText;
-use crate::output::{fmt_num, write_outputs};
+use crate::output::{fmt_num, read_result_json, write_outputs};
 
 /// Arguments of `cryofit crossval`.
 #[derive(Debug, Args)]
@@ -61,12 +61,7 @@ struct Joint {
 }
 
 fn read_joint(dir: &Path) -> Result<Joint> {
-    let path = dir.join("result.json");
-    let text = std::fs::read_to_string(&path).with_context(|| {
-        format!("--from {}: cannot read result.json (is it a `cryofit calibrate` output folder?)", dir.display())
-    })?;
-    let result: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let (path, result) = read_result_json(dir, "--from")?;
     let best: BTreeMap<String, f64> = serde_json::from_value(result["best_parameters"].clone())
         .with_context(|| format!("{}: `best_parameters` is missing or not a table of numbers", path.display()))?;
     let free: Vec<String> = result["stages"]

@@ -56,6 +56,17 @@ pub(crate) fn write_outputs<N: AsRef<str>, C: AsRef<[u8]>>(dir: &Path, files: &[
     Ok(())
 }
 
+/// A `cryofit calibrate` output folder's `result.json`: its path and contents. `flag` is how the
+/// command names the folder in errors (`--from`, or nothing for a positional argument).
+pub(crate) fn read_result_json(dir: &Path, flag: &str) -> Result<(PathBuf, serde_json::Value)> {
+    let path = dir.join("result.json");
+    let named = if flag.is_empty() { dir.display().to_string() } else { format!("{flag} {}", dir.display()) };
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{named}: cannot read result.json (is it a `cryofit calibrate` output folder?)"))?;
+    let value = serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    Ok((path, value))
+}
+
 /// First time a series falls below `threshold`, linearly interpolated; `None` if it never does.
 pub(crate) fn first_below(times: &[f64], values: &[f64], threshold: f64) -> Option<f64> {
     if values.first().is_some_and(|&v| v < threshold) {

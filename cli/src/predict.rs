@@ -25,7 +25,7 @@ use serde_json::json;
 
 use crate::csv_text::CsvText;
 use crate::fluid_source;
-use crate::output::{fmt_num, write_outputs};
+use crate::output::{fmt_num, read_result_json, write_outputs};
 
 /// Arguments of `cryofit predict`.
 #[derive(Debug, Args)]
@@ -52,12 +52,7 @@ pub struct PredictArgs {
 
 /// The parameter sets to run: posterior draws completed with the best and fixed values.
 fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>, &'static str)> {
-    let result_path = dir.join("result.json");
-    let text = std::fs::read_to_string(&result_path).with_context(|| {
-        format!("--from {}: cannot read result.json (is it a `cryofit calibrate` output folder?)", dir.display())
-    })?;
-    let result: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", result_path.display()))?;
+    let (result_path, result) = read_result_json(dir, "--from")?;
     let number_map = |v: &serde_json::Value, field: &str| -> Result<BTreeMap<String, f64>> {
         let obj =
             v.as_object().ok_or_else(|| anyhow!("{}: `{field}` is missing or not an object", result_path.display()))?;
