@@ -76,6 +76,14 @@ impl Space {
         self.params.iter().map(|p| p.name.as_str())
     }
 
+    /// The space of the parameters `names`, in that order (a stage's free set after a screening
+    /// stage, say); `None` when a name is not in this space.
+    pub fn select<S: AsRef<str>>(&self, names: &[S]) -> Option<Space> {
+        let params: Option<Vec<FreeParameter>> =
+            names.iter().map(|n| self.params.iter().find(|p| p.name == n.as_ref()).cloned()).collect();
+        Space::new(params?).ok()
+    }
+
     /// Physical value of parameter `i` at unit coordinate `u` (clamped to `[0, 1]`).
     pub fn value(&self, i: usize, u: f64) -> f64 {
         let p = &self.params[i];
@@ -124,6 +132,15 @@ mod tests {
 
     fn p(name: &str, lower: f64, upper: f64, scale: Scale) -> FreeParameter {
         FreeParameter { name: name.into(), lower, upper, scale }
+    }
+
+    #[test]
+    fn a_selection_keeps_the_named_parameters_in_the_given_order() {
+        let s = Space::new(vec![p("a", -1.0, 3.0, Scale::Linear), p("b", 0.25, 4.0, Scale::Log)]).unwrap();
+        let t = s.select(&["b", "a"]).unwrap();
+        assert_eq!(t.params(), [s.params()[1].clone(), s.params()[0].clone()]);
+        assert_eq!(s.select(&["b", "c"]), None);
+        assert_eq!(s.select(&["a", "a"]), None);
     }
 
     #[test]

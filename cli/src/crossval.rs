@@ -72,6 +72,15 @@ fn read_joint(dir: &Path) -> Result<Joint> {
     Ok(Joint { best, free })
 }
 
+/// A free parameter's name as the `[[parameters]]` entry it comes from and, for a per-experiment
+/// copy of a case field (`case.<path>@<experiment>`), its experiment.
+fn entry_of(name: &str) -> (&str, Option<&str>) {
+    match apparatus::case_name(name).and_then(|c| c.experiment) {
+        Some(e) => (&name[..name.len() - e.len() - apparatus::EXPERIMENT_MARK.len_utf8()], Some(e)),
+        None => (name, None),
+    }
+}
+
 /// The refit without experiment `left` (index): the other experiments (paths made absolute from
 /// `base`), the refitted parameters starting at the joint optimum, the `[crossval]` stages.
 fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &Path) -> Result<CalibrationSpec> {
@@ -96,18 +105,17 @@ fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &
     let mut parameters = Vec::new();
     for p in &spec.parameters {
         // the space names of this entry: itself, or one copy per listed experiment
-        let copies: Vec<&String> =
-            names.iter().filter(|n| *n == &p.name || n.starts_with(&format!("{}@", p.name))).collect();
-        let kept: Vec<&String> = copies
-            .into_iter()
+        let kept: Vec<&String> = names
+            .iter()
+            .filter(|n| entry_of(n).0 == p.name)
             .filter(|n| joint.is_none_or(|j| j.free.contains(n)))
-            .filter(|n| !n.ends_with(&format!("@{left_name}")))
+            .filter(|n| entry_of(n).1 != Some(left_name.as_str()))
             .collect();
         let Some(first) = kept.first() else { continue };
         let experiments = p
             .experiments
             .as_ref()
-            .map(|_| kept.iter().filter_map(|n| n.split_once('@').map(|(_, e)| e.to_string())).collect::<Vec<_>>());
+            .map(|_| kept.iter().filter_map(|n| entry_of(n).1.map(str::to_owned)).collect::<Vec<_>>());
         let start = joint.and_then(|j| j.best.get(*first).copied()).or(p.start);
         parameters.push(ParameterSpec { experiments, start, ..p.clone() });
     }
@@ -118,7 +126,7 @@ fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &
     let mut fixed = spec.fixed.clone();
     if let Some(j) = joint {
         for (name, &v) in &j.best {
-            let free = parameters.iter().any(|p| &p.name == name || name.starts_with(&format!("{}@", p.name)));
+            let free = parameters.iter().any(|p| p.name == entry_of(name).0);
             if !free && !apparatus::is_case_name(name) && !fixed.contains_key(name) {
                 fixed.insert(name.clone(), v);
             }
@@ -437,6 +445,13 @@ fn print_table(results: &[FoldResult]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn copies_are_read_as_their_entry_and_experiment() {
+        assert_eq!(entry_of("Gwsc"), ("Gwsc", None));
+        assert_eq!(entry_of("case.inlet.loss_coefficient"), ("case.inlet.loss_coefficient", None));
+        assert_eq!(entry_of("case.inlet.loss_coefficient@run-b"), ("case.inlet.loss_coefficient", Some("run-b")));
+    }
 
     #[test]
     fn the_band_is_read_between_its_times() {

@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
-use cryofit_calib::Space;
 use cryofit_calib::apparatus;
 use cryofit_calib::config::CalibrationSpec;
 use cryofit_calib::draws::{gaussian_draws, space_draws};
@@ -104,11 +103,7 @@ fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>,
         let space = serde_json::from_value::<CalibrationSpec>(result["calibration"].clone())
             .ok()
             .and_then(|s| s.space().ok())
-            .and_then(|space| {
-                let own: Option<Vec<_>> =
-                    names.iter().map(|n| space.params().iter().find(|p| &p.name == n).cloned()).collect();
-                Space::new(own?).ok()
-            });
+            .and_then(|space| space.select(&names));
         let unit: Option<(Vec<f64>, Vec<Vec<f64>>)> = serde_json::from_value(u["centre_unit"].clone())
             .ok()
             .zip(serde_json::from_value(u["covariance_unit"].clone()).ok());

@@ -184,17 +184,9 @@ impl<'a> Context<'a> {
                     ));
                 }
                 let space = self.space.as_ref().map_err(Clone::clone)?;
-                let own = Space::new(
-                    r.free
-                        .iter()
-                        .map(|n| {
-                            space.params().iter().find(|p| &p.name == n).cloned().ok_or_else(|| {
-                                format!("the variance stage's parameter {n} is not a free parameter of the calibration")
-                            })
-                        })
-                        .collect::<Result<_, String>>()?,
-                )
-                .map_err(|e| e.to_string())?;
+                let own = space.select(&r.free).ok_or_else(|| {
+                    format!("the variance stage's parameters {:?} are not free parameters of the calibration", r.free)
+                })?;
                 let draws =
                     space_draws(&own, &g.centre_unit, &g.covariance_unit, 1000, seed).map_err(|e| e.to_string())?;
                 return Ok((r.free.clone(), draws, "Gaussian approximation of the variance stage"));
