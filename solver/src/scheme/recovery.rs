@@ -85,24 +85,41 @@ impl Scheme<'_> {
         let (mut tg, mut gp, mut eg, reset_g) =
             match cell.phase(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, budget) {
                 Ok(gas) => gas,
-                Err(rejection) => {
-                    let f = cell.edge_phase_change(Phase::Gas, mg, next.e_g[i], ml).ok_or(rejection)?;
-                    next.m_g[i] -= f.mass;
-                    next.m_l[i] += f.mass;
-                    next.e_l[i] += f.energy;
-                    (f.t, f.props, next.m_g[i] * f.props.u, true)
-                }
+                Err(rejection) => match cell.edge_phase_change(Phase::Gas, mg, next.e_g[i], ml).ok_or(rejection)? {
+                    EdgeChange::Whole => {
+                        next.m_l[i] += mg;
+                        next.e_l[i] += next.e_g[i];
+                        next.m_g[i] = 0.0;
+                        cell.phase(Phase::Gas, 0.0, 0.0, tg_guess, tl_guess, budget)?
+                    }
+                    EdgeChange::Part { mass, energy, t, props } => {
+                        next.m_g[i] -= mass;
+                        next.m_l[i] += mass;
+                        next.e_l[i] += energy;
+                        (t, props, next.m_g[i] * props.u, true)
+                    }
+                },
             };
         let (tl, lp, el, reset_l) = match cell.phase(Phase::Liquid, next.m_l[i], next.e_l[i], tl_guess, tg, budget) {
             Ok(liquid) => liquid,
             Err(rejection) => {
-                let f =
+                let change =
                     cell.edge_phase_change(Phase::Liquid, next.m_l[i], next.e_l[i], next.m_g[i]).ok_or(rejection)?;
-                next.m_l[i] -= f.mass;
-                next.m_g[i] += f.mass;
+                let (mass, energy) = match change {
+                    EdgeChange::Whole => (next.m_l[i], next.e_l[i]),
+                    EdgeChange::Part { mass, energy, .. } => (mass, energy),
+                };
+                next.m_l[i] -= mass;
+                next.m_g[i] += mass;
                 // the gas with the vapour that joined it, from its temperature as recovered
-                (tg, gp, eg, _) = cell.phase(Phase::Gas, next.m_g[i], eg + f.energy, tg, f.t, budget)?;
-                (f.t, f.props, next.m_l[i] * f.props.u, true)
+                (tg, gp, eg, _) = cell.phase(Phase::Gas, next.m_g[i], eg + energy, tg, tl_guess, budget)?;
+                match change {
+                    EdgeChange::Whole => {
+                        next.m_l[i] = 0.0;
+                        cell.phase(Phase::Liquid, 0.0, 0.0, tl_guess, tg, budget)?
+                    }
+                    EdgeChange::Part { t, props, .. } => (t, props, next.m_l[i] * props.u, true),
+                }
             }
         };
         let (mg, ml) = (next.m_g[i], next.m_l[i]);
@@ -148,14 +165,15 @@ struct Recovery<'a> {
     blend_max: f64,
 }
 
-/// A phase change at a phase table's edge ([`Recovery::edge_phase_change`]): the mass and
-/// internal energy per unit volume that go to the other phase, and the phase's state at the edge.
+/// A phase change at a phase table's edge ([`Recovery::edge_phase_change`]).
 #[derive(Debug, Clone, Copy)]
-struct EdgeChange {
-    mass: f64,
-    energy: f64,
-    t: f64,
-    props: PhaseProps,
+enum EdgeChange {
+    /// The whole phase goes to the other phase, mass and energy (its energy is the other
+    /// phase's: [`Recovery::beyond_other_phase`]).
+    Whole,
+    /// The mass and internal energy per unit volume that go to the other phase, and the
+    /// temperature and properties at the edge of the part that stays.
+    Part { mass: f64, energy: f64, t: f64, props: PhaseProps },
 }
 
 impl Recovery<'_> {
@@ -166,9 +184,12 @@ impl Recovery<'_> {
     /// from saturation there) and the mass that carries the excess at the other phase's
     /// saturated internal energy goes to the other phase, so that the cell's internal energy is
     /// kept exactly; the volume that moves is a volume error that the next steps' pressure
-    /// equations remove, as for a trace reset. `None` where the energy is not beyond that edge,
-    /// there is no saturation (above the critical pressure), none of the other phase to take
-    /// the mass, or the change would take more than half the phase.
+    /// equations remove, as for a trace reset. A phase whose energy lies beyond even the other
+    /// phase's saturated energy goes over whole, mass and energy (a "liquid" above the critical
+    /// temperature when the pressure falls below the critical pressure is vapour). `None` where
+    /// the energy is not beyond that edge, there is no saturation (above the critical pressure),
+    /// none of the other phase to take the mass, or a partial change would take more than half
+    /// the phase.
     ///
     /// Decision: near the critical point the phase tables end a few hundredths of a kelvin
     /// from saturation (`data/fluids/README.md`), and liquid the wall heats there (para-hydrogen
@@ -183,6 +204,10 @@ impl Recovery<'_> {
         if !(m_other > self.tiny && m > self.tiny) {
             return None;
         }
+        let u = e / m;
+        if self.beyond_other_phase(phase, u) {
+            return Some(EdgeChange::Whole);
+        }
         let sat = fluid.saturation(p).ok().filter(|s| s.h_lg > 0.0)?;
         let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
         let margin = 1e-6 * (hi - lo);
@@ -191,17 +216,40 @@ impl Recovery<'_> {
             Phase::Gas => (lo + margin, sat.h_l - p / sat.rho_l),
         };
         let props = fluid.phase_props(phase, p, t).ok()?;
-        let u = e / m;
-        // beyond the edge, and not beyond the other phase's saturated energy
-        let (beyond, short) = match phase {
-            Phase::Liquid => (u > props.u, u < u_other),
-            Phase::Gas => (u < props.u, u > u_other),
+        let beyond = match phase {
+            Phase::Liquid => u > props.u,
+            Phase::Gas => u < props.u,
         };
-        if !(beyond && short) {
+        if !beyond {
             return None;
         }
         let mass = m * (u - props.u) / (u_other - props.u);
-        (mass <= 0.5 * m).then_some(EdgeChange { mass, energy: mass * u_other, t, props })
+        (mass <= 0.5 * m).then_some(EdgeChange::Part { mass, energy: mass * u_other, t, props })
+    }
+
+    /// Whether specific energy `u` of `phase` belongs to the other phase at the cell's pressure:
+    /// beyond the other phase's saturated energy (liquid more energetic than saturated vapour,
+    /// gas less than saturated liquid) or, where the table gives no saturation (within 0.5 %
+    /// of the critical pressure), outside its own table and inside the other phase's. Such a
+    /// phase goes over whole ([`Recovery::edge_phase_change`]); it is never a trace to be
+    /// clamped into its own table.
+    fn beyond_other_phase(&self, phase: Phase, u: f64) -> bool {
+        let (fluid, p) = (self.fluid, self.p);
+        match fluid.saturation(p).ok().filter(|s| s.h_lg > 0.0) {
+            Some(sat) => match phase {
+                Phase::Liquid => u > sat.h_g - p / sat.rho_g,
+                Phase::Gas => u < sat.h_l - p / sat.rho_l,
+            },
+            None => {
+                let other = match phase {
+                    Phase::Liquid => Phase::Gas,
+                    Phase::Gas => Phase::Liquid,
+                };
+                let guess = fluid.constants().t_critical_k;
+                fluid.temperature_from_energy(phase, p, u, guess).is_err()
+                    && fluid.temperature_from_energy(other, p, u, guess).is_ok()
+            }
+        }
     }
 
     /// The temperature of a phase of mass `m` and energy `e` per unit volume (`guess` to start
@@ -254,7 +302,9 @@ impl Recovery<'_> {
         }
         match fluid.temperature_from_energy(phase, p, e / m, guess) {
             Ok((t, pr)) => Ok((t, pr, e, false)),
-            Err(_) if trace_frac < self.blend_max.max(TRACE_RESET_FRACTION) => {
+            Err(_)
+                if trace_frac < self.blend_max.max(TRACE_RESET_FRACTION) && !self.beyond_other_phase(phase, e / m) =>
+            {
                 // the nearest temperature the table holds, which changes the trace's
                 // density (and so the cell's volume balance) least
                 let Some((lo, hi)) = fluid.phase_temperature_range(phase, p) else {
