@@ -1,4 +1,4 @@
-//! `cryofit calibrate CALIBRATION.toml [--workers N] [--out DIR]`: fits registry parameters to
+//! `cryofit calibrate CALIBRATION.toml [--workers N | --coordinator URL] [--out DIR]`: fits parameters to
 //! measured time series.
 //!
 //! The calibration runs through an embedded coordinator — the service's code path, with its SQLite
@@ -7,6 +7,10 @@
 //! cases and data) resumes it where it stopped: nothing counted is evaluated again, and a
 //! generation-synchronous calibration ends bit-identical to an uninterrupted one. A finished run is
 //! reported again; a folder holding another calibration is refused.
+//!
+//! With `--coordinator URL` the calibration runs on a remote coordinator's workers instead: it is
+//! submitted there (its id noted in `<out>/coordinator.json`, so that a re-run waits for it rather
+//! than submitting another) and the outputs are made, as above, from what the REST API returns.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -42,6 +46,12 @@ pub struct CalibrateArgs {
     /// resumes an unfinished run [default: out/<calibration file stem>].
     #[arg(long, value_name = "DIR")]
     pub(crate) out: Option<PathBuf>,
+    /// Run the calibration on this coordinator's workers instead of in-process ones (token from
+    /// CRYOFIT_TOKEN): the file and its experiments are submitted, the command waits for the end
+    /// and writes the same outputs; the folder notes the calibration (coordinator.json), so that
+    /// re-running into it waits for that calibration again instead of submitting another.
+    #[arg(long, value_name = "URL", conflicts_with = "workers")]
+    pub(crate) coordinator: Option<String>,
 }
 
 /// A calibration read from disk: its spec, its problem and its (not yet started) pipeline.
@@ -156,19 +166,14 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
         None => std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_WORKERS),
     };
     let (_, experiments) = crate::client::read_calibration(&args.file)?;
-    std::fs::create_dir_all(&out_dir)
-        .with_context(|| format!("--out {}: cannot create the directory", out_dir.display()))?;
-    let _lock = lock_folder(&out_dir, || {
-        anyhow!(
-            "--out {}: another cryofit calibrate is running into this folder; wait for it to finish or pick another \
-             --out",
-            out_dir.display()
-        )
-    })?;
+    let _lock = open_folder(&out_dir)?;
     let space = pipeline.space().clone();
     let run = {
         let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
-        rt.block_on(drive(spec, &label, &experiments, &out_dir, workers))?
+        match &args.coordinator {
+            None => rt.block_on(drive(spec, &label, &experiments, &out_dir, workers))?,
+            Some(url) => rt.block_on(remote(spec, &label, &experiments, &out_dir, url))?,
+        }
     };
 
     // the best fit, once more, for its probes and per-series figures: over the whole case (the
@@ -209,6 +214,124 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     write_outputs(&out_dir, &refs)?;
     print_report(spec, &run, &fits, &out_dir, &outputs);
     Ok(())
+}
+
+/// Creates the output folder and locks it for this run.
+fn open_folder(out_dir: &Path) -> Result<Option<std::fs::File>> {
+    std::fs::create_dir_all(out_dir)
+        .with_context(|| format!("--out {}: cannot create the directory", out_dir.display()))?;
+    lock_folder(out_dir, || {
+        anyhow!(
+            "--out {}: another cryofit calibrate is running into this folder; wait for it to finish or pick another \
+             --out",
+            out_dir.display()
+        )
+    })
+}
+
+/// Submits the calibration file `args.file` to `args.coordinator` without waiting for it, noting
+/// it in the output folder as `cryofit calibrate --coordinator` does (a calibration already noted
+/// there is kept); returns its id. `cryofit calibrate --coordinator` into the same folder then
+/// waits for it and writes the outputs.
+pub(crate) fn submit_to_coordinator(args: &CalibrateArgs) -> Result<i64> {
+    let url = args.coordinator.as_deref().ok_or_else(|| anyhow!("no --coordinator to submit to"))?;
+    let Loaded { spec, .. } = load(&args.file)?;
+    let label = args.file.display().to_string();
+    let out_dir = out_dir(args);
+    let (_, experiments) = crate::client::read_calibration(&args.file)?;
+    let _lock = open_folder(&out_dir)?;
+    let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    rt.block_on(async {
+        let client = remote_client(url)?;
+        attach_or_submit(&client, &spec, &label, &experiments, &out_dir, url).await
+    })
+}
+
+/// File in a `--coordinator` calibration's output folder naming the coordinator and the
+/// calibration id.
+const COORDINATOR_FILE: &str = "coordinator.json";
+
+fn remote_client(url: &str) -> Result<Client> {
+    Client::new(url, crate::work::token())
+        .map(|c| c.with_retry_for(Duration::from_secs(10)))
+        .with_context(|| format!("--coordinator {url}"))
+}
+
+/// Runs the calibration on the coordinator at `url`: the one noted in `out_dir` or a new
+/// submission; waits for it to end and fetches what the outputs need.
+async fn remote(
+    spec: &CalibrationSpec,
+    label: &str,
+    experiments: &[api::CreateExperiment],
+    out_dir: &Path,
+    url: &str,
+) -> Result<Run> {
+    let client = remote_client(url)?;
+    let id = attach_or_submit(&client, spec, label, experiments, out_dir, url).await?;
+    let bar = CalibrationProgress::new();
+    let clock = Instant::now();
+    let mut done_before = None;
+    let c = loop {
+        let c = client.calibration(id).await.map_err(|e| anyhow!("calibration {id} on {url}: {e}"))?;
+        let before = *done_before.get_or_insert(c.evaluations.max(0) as usize);
+        bar.update(&c, before, clock.elapsed());
+        if c.status.is_final() {
+            break c;
+        }
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    bar.clear();
+    // the coordinator's clock: from submission to the last change
+    let wall = (c.updated - c.created).max(0) as f64 / 1e3;
+    finished(&client, label, out_dir, c, wall).await
+}
+
+/// The id of this file's calibration on the coordinator at `url`: the one `out_dir` notes (which
+/// must be this calibration there), or a new submission, then noted.
+async fn attach_or_submit(
+    client: &Client,
+    spec: &CalibrationSpec,
+    label: &str,
+    experiments: &[api::CreateExperiment],
+    out_dir: &Path,
+    url: &str,
+) -> Result<i64> {
+    let noted = out_dir.join(COORDINATOR_FILE);
+    let folder = out_dir.display();
+    if out_dir.join(DATABASE).exists() {
+        bail!("--out {folder}: the folder holds a local calibration ({DATABASE}); pick another --out");
+    }
+    if let Ok(text) = std::fs::read_to_string(&noted) {
+        let v: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", noted.display()))?;
+        let (Some(at), Some(id)) = (v["coordinator"].as_str(), v["id"].as_i64()) else {
+            bail!(
+                "{}: names no coordinator and calibration id; delete the folder or pick another --out",
+                noted.display()
+            );
+        };
+        if at != url {
+            bail!("--out {folder}: the folder is calibration {id} on {at}, not on {url}; pick another --out");
+        }
+        let c =
+            client.calibration(id).await.map_err(|e| anyhow!("{}: calibration {id} on {url}: {e}", noted.display()))?;
+        if c.spec != serde_json::to_value(request(spec, c.experiments.clone()))? {
+            bail!(
+                "--out {folder}: the folder is calibration {id} on {url} (\"{}\"), not the one of {label}; pick another \
+                 --out or delete the folder",
+                c.name
+            );
+        }
+        return Ok(id);
+    }
+    if std::fs::read_dir(out_dir).is_ok_and(|mut d| d.any(|e| e.is_ok_and(|e| e.file_name() == "result.json"))) {
+        bail!("--out {folder}: the folder holds the outputs of another calibration; pick another --out");
+    }
+    let id = submit(client, spec, label, experiments).await?;
+    let note = json!({ "coordinator": url, "id": id });
+    write_outputs(out_dir, &[(COORDINATOR_FILE, format!("{note:#}\n"))])?;
+    eprintln!("submitted calibration {id} to {url}");
+    Ok(id)
 }
 
 /// An exclusive lock on a calibration output folder for as long as it is held, so that two runs

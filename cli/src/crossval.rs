@@ -1,11 +1,15 @@
-//! `cryofit crossval CALIBRATION.toml [--from DIR] [--out DIR]`: leave-one-out cross-validation
-//! of a joint calibration. For each experiment in turn the calibration is refitted without it
+//! `cryofit crossval CALIBRATION.toml [--from DIR] [--out DIR] [--coordinator URL]`: leave-one-out
+//! cross-validation of a joint calibration. For each experiment in turn the calibration is
+//! refitted without it
 //! (the stages of the file's `[crossval]` table, warm-started from the joint optimum of `--from`)
 //! and the left-out experiment is predicted: its best-fit prediction (RMS per station, station-4
 //! chilldown against the data) and, where the refit has a posterior that holds, the 5–95 %
 //! posterior-predictive band and the share of the measurements it covers. It writes, in `--out`,
 //! a folder per fold (the refit's calibration file and outputs, the predictions), `crossval.json`,
-//! `crossval.csv` and a figure per fold (left-out data, prediction and band).
+//! `crossval.csv` and a figure per fold (left-out data, prediction and band). With
+//! `--coordinator URL` the refits run on that coordinator's workers: all are submitted first, so
+//! that they share the workers, and each is then waited for and written as `cryofit calibrate
+//! --coordinator` writes it.
 //!
 //! Decisions:
 //! - The refit frees the joint calibration's last-stage parameters (after any screening stage
@@ -46,6 +50,12 @@ pub struct CrossvalArgs {
     /// Simulations run at once [default: the number of cores].
     #[arg(long, value_name = "N")]
     workers: Option<usize>,
+    /// Run the refits on this coordinator's workers (token from CRYOFIT_TOKEN): every fold's
+    /// refit is submitted at once, so that they share the workers, and each is written, as
+    /// `cryofit calibrate --coordinator` writes it, when it ends; the left-out predictions run
+    /// here. Re-running into the same --out waits for the same refits.
+    #[arg(long, value_name = "URL", conflicts_with = "workers")]
+    coordinator: Option<String>,
     /// Posterior draws for each left-out prediction's band.
     #[arg(long, value_name = "N", default_value_t = 40)]
     samples: usize,
@@ -232,22 +242,34 @@ pub fn run(args: &CrossvalArgs) -> Result<()> {
         let stem = args.file.file_stem().map_or_else(|| "calibration".into(), |s| s.to_string_lossy().into_owned());
         Path::new("out").join(format!("crossval-{stem}"))
     });
-    let mut results = Vec::new();
-    let mut figures = Vec::new();
+    // each fold's calibration file, and where its refit goes
+    let mut refits = Vec::new();
     for (k, fold) in folds.iter().enumerate() {
         let name = spec.experiments[k].label(k);
-        println!("fold {} of {}: refit without `{name}`", k + 1, folds.len());
         let dir = out_dir.join(format!("without-{name}"));
-        let file = dir.join("calibration.toml");
         let toml_text = toml::to_string(fold).context("cannot write the refit's calibration file")?;
         write_outputs(&dir, &[("calibration.toml", format!("# cryofit crossval: {}\n{toml_text}", fold.name))])?;
-        let fit_dir = dir.join("refit");
-        crate::calibrate::run(&crate::calibrate::CalibrateArgs {
-            file: file.clone(),
+        let args = crate::calibrate::CalibrateArgs {
+            file: dir.join("calibration.toml"),
             workers: args.workers,
-            out: Some(fit_dir.clone()),
-        })?;
-        let (result, figure) = predict_left_out(&spec, k, &base, &dir, &fit_dir, args)?;
+            out: Some(dir.join("refit")),
+            coordinator: args.coordinator.clone(),
+        };
+        refits.push((name, dir, args));
+    }
+    if let Some(url) = &args.coordinator {
+        for (k, (name, _, refit)) in refits.iter().enumerate() {
+            let id = crate::calibrate::submit_to_coordinator(refit)?;
+            println!("fold {} of {}: refit without `{name}` is calibration {id} on {url}", k + 1, refits.len());
+        }
+    }
+    let mut results = Vec::new();
+    let mut figures = Vec::new();
+    for (k, (name, dir, refit)) in refits.iter().enumerate() {
+        println!("fold {} of {}: refit without `{name}`", k + 1, refits.len());
+        crate::calibrate::run(refit)?;
+        let fit_dir = refit.out.clone().unwrap_or_else(|| dir.join("refit"));
+        let (result, figure) = predict_left_out(&spec, k, &base, dir, &fit_dir, args)?;
         results.push(result);
         figures.push(figure);
     }
