@@ -11,6 +11,9 @@
 //! `cryofit bench envelope [--json] [--params FILE]` runs the NBS line with four fluids, saturated
 //! and subcooled, at four drive pressures and reports which runs complete, how fast and how well
 //! they keep their energy balance (see [`envelope`]).
+//!
+//! `cryofit bench chaos --case CASE --param NAME [--ulps N]` measures how far a run's chilldown
+//! moves when one parameter moves by a few units in the last place (see [`chaos`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -28,6 +31,7 @@ use serde::Serialize;
 
 use crate::fluid_source;
 
+mod chaos;
 mod coordinator;
 mod envelope;
 
@@ -40,6 +44,8 @@ pub enum BenchCommand {
     Coordinator(coordinator::CoordinatorArgs),
     /// Operating envelope: the NBS line with four fluids, saturated and subcooled, at four drive pressures.
     Envelope(envelope::EnvelopeArgs),
+    /// Chaos: a case's chilldown with one parameter moved by a few units in the last place.
+    Chaos(chaos::ChaosArgs),
 }
 
 /// Arguments of `cryofit bench robustness`.
@@ -65,6 +71,7 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
         BenchCommand::Robustness(args) => robustness(args),
         BenchCommand::Coordinator(args) => coordinator::run(args),
         BenchCommand::Envelope(args) => envelope::run(args),
+        BenchCommand::Chaos(args) => chaos::run(args),
     }
 }
 

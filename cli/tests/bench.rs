@@ -119,3 +119,45 @@ fn coordinator_benchmark_reports_json() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(err.contains("--workers 0"), "{err}");
 }
+
+/// `bench chaos` on the NBS subcooled case cut to 10 cells and 160 s: three runs at Gwsc one unit
+/// in the last place below, at and above its default, each with its station-4 chilldown, the range
+/// and the largest move consistent with them; and the errors for a parameter or station the case
+/// does not have.
+#[test]
+fn chaos_reports_the_chilldown_of_each_perturbation() {
+    let dir = std::env::temp_dir().join(format!("cryofit-bench-chaos-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+    let text = std::fs::read_to_string(src).unwrap();
+    assert!(text.contains("cells = 30") && text.contains("end_s = 1000.0"), "the NBS case changed: update this test");
+    let case = dir.join("small.toml");
+    std::fs::write(&case, text.replacen("cells = 30", "cells = 10", 1).replacen("end_s = 1000.0", "end_s = 160.0", 1))
+        .unwrap();
+    let case = case.to_str().unwrap();
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).output().unwrap();
+    let out = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["station"], "TS4");
+    let runs = v["runs"].as_array().unwrap();
+    let values: Vec<f64> = runs.iter().map(|r| r["value"].as_f64().unwrap()).collect();
+    assert_eq!(values, [1.0 - f64::EPSILON / 2.0, 1.0, 1.0 + f64::EPSILON]);
+    let times: Vec<f64> = runs.iter().map(|r| r["chilldown_s"].as_f64().expect("a chilldown")).collect();
+    let (lo, hi) = (times.iter().copied().fold(f64::INFINITY, f64::min), times.iter().copied().fold(0.0, f64::max));
+    assert_eq!(v["range_s"], serde_json::json!([lo, hi]));
+    let moved = times.iter().map(|t| (t - times[1]).abs()).fold(0.0, f64::max);
+    assert_eq!(v["largest_move_s"].as_f64(), Some(moved));
+    assert_eq!(v["target_met"], moved <= 1.0);
+
+    let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsx"]);
+    assert!(!bad.status.success());
+    assert!(
+        String::from_utf8_lossy(&bad.stderr).contains("did you mean 'Gwsc'"),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
+    let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--station", "TS9"]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("has the stations TS1, TS2, TS3, TS4"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,220 @@
+//! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--json]`: how far a
+//! run's chilldown moves when one parameter moves by a few units in the last place.
+//!
+//! The value of `NAME` in the case (its `[parameters]` entry or the registry default) is set to
+//! each of the 2N + 1 doubles from N below it to N above it, and the case is run with each (all
+//! cores). The report gives every run's chilldown time at the station and its steps, the range of
+//! the chilldowns and the largest move from the unperturbed run, held against the target of 1 s
+//! (issue "operating envelope": ten one-ulp perturbations of one closure value move the subcooled
+//! station-4 chilldown by at most 1 s). A perturbation that leaves the registry bounds, or a run
+//! that fails or never reaches the chilldown, is reported as such and counts as not meeting it.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use cryofit_solver::case::Case;
+use cryofit_solver::driver;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::fluid_source;
+
+/// Largest move of the chilldown, s, that the target allows.
+const TARGET_S: f64 = 1.0;
+
+/// Most units in the last place either side.
+const MAX_ULPS: u32 = 50;
+
+/// Arguments of `cryofit bench chaos`.
+#[derive(Debug, Args)]
+pub struct ChaosArgs {
+    /// The case file.
+    #[arg(long, value_name = "CASE.toml")]
+    case: PathBuf,
+    /// The registry parameter to perturb.
+    #[arg(long, value_name = "NAME")]
+    param: String,
+    /// Units in the last place either side of the value (2N + 1 runs).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    ulps: u32,
+    /// The station whose chilldown is measured [default: the case's last station].
+    #[arg(long, value_name = "NAME")]
+    station: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One perturbed run.
+#[derive(Debug, Serialize)]
+struct Run {
+    /// Units in the last place from the case's value (negative: below).
+    ulps: i64,
+    value: f64,
+    /// Chilldown time at the station, s; `None` when not reached or the run failed.
+    chilldown_s: Option<f64>,
+    steps: Option<u64>,
+    /// Why there is no chilldown time, where there is none.
+    error: Option<String>,
+}
+
+/// The report (`--json` prints it).
+#[derive(Debug, Serialize)]
+struct Report {
+    case: String,
+    parameter: String,
+    value: f64,
+    station: String,
+    runs: Vec<Run>,
+    /// Smallest and largest chilldown of the runs that reached it, s.
+    range_s: Option<(f64, f64)>,
+    /// Largest |chilldown − unperturbed chilldown| over the perturbed runs, s.
+    largest_move_s: Option<f64>,
+    target_s: f64,
+    /// Every run reached the chilldown and none moved it by more than the target.
+    target_met: bool,
+    wall_time_s: f64,
+}
+
+/// The double `k` units in the last place from `x` (towards +∞ for positive `k`), for finite
+/// nonzero `x`; `None` where that crosses zero or leaves the finite numbers.
+fn ulps_from(x: f64, k: i64) -> Option<f64> {
+    if !(x.is_finite() && x != 0.0) {
+        return None;
+    }
+    let bits = x.abs().to_bits() as i64;
+    let step = if x > 0.0 { k } else { -k };
+    let moved = bits.checked_add(step).filter(|&b| b > 0)?;
+    let y = f64::from_bits(moved as u64);
+    y.is_finite().then_some(if x > 0.0 { y } else { -y })
+}
+
+/// Runs `cryofit bench chaos`.
+pub fn run(args: &ChaosArgs) -> Result<()> {
+    if args.ulps == 0 || args.ulps > MAX_ULPS {
+        bail!("--ulps {}: give 1 to {MAX_ULPS}", args.ulps);
+    }
+    let path = args.case.display().to_string();
+    let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {path}"))?;
+    let case = Case::from_toml(&text, &path)?;
+    let base = driver::case_parameters(&case).map_err(|e| anyhow!("{path}: {e}"))?;
+    let value = base.try_get(&args.param).map_err(|e| anyhow!("--param: {e}"))?;
+    if !(value.is_finite() && value != 0.0) {
+        bail!("--param {}: its value in {path} is {value}; units in the last place need a nonzero value", args.param);
+    }
+    let station = match &args.station {
+        Some(s) if case.stations.iter().any(|st| &st.name == s) => s.clone(),
+        Some(s) => {
+            let names: Vec<&str> = case.stations.iter().map(|st| st.name.as_str()).collect();
+            bail!("--station {s}: {path} has the stations {}", names.join(", "));
+        }
+        None => case
+            .stations
+            .last()
+            .map(|st| st.name.clone())
+            .ok_or_else(|| anyhow!("{path}: the case has no stations, so no chilldown time to measure"))?,
+    };
+    let table = fluid_source::load(&case.fluid.name)?;
+    let clock = Instant::now();
+    let n = i64::from(args.ulps);
+    let runs: Vec<Run> = (-n..=n)
+        .into_par_iter()
+        .map(|k| {
+            let Some(v) = ulps_from(value, k) else {
+                return Run {
+                    ulps: k,
+                    value: f64::NAN,
+                    chilldown_s: None,
+                    steps: None,
+                    error: Some("no such double".into()),
+                };
+            };
+            let mut params = base.clone();
+            if let Err(e) = params.set(&args.param, v) {
+                return Run { ulps: k, value: v, chilldown_s: None, steps: None, error: Some(e.to_string()) };
+            }
+            match driver::run(&case, &table, &params, &mut |_| {}) {
+                Ok(out) => {
+                    let chill = out.summary.chilldown_time_s.get(&station).copied().flatten();
+                    let error = chill.is_none().then(|| format!("{station} does not reach its chilldown"));
+                    Run { ulps: k, value: v, chilldown_s: chill, steps: Some(out.summary.steps), error }
+                }
+                Err(e) => Run { ulps: k, value: v, chilldown_s: None, steps: None, error: Some(e.to_string()) },
+            }
+        })
+        .collect();
+    let times: Vec<f64> = runs.iter().filter_map(|r| r.chilldown_s).collect();
+    let range_s = (!times.is_empty()).then(|| {
+        (times.iter().copied().fold(f64::INFINITY, f64::min), times.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+    });
+    let centre = runs.iter().find(|r| r.ulps == 0).and_then(|r| r.chilldown_s);
+    let largest_move_s = centre.map(|c| times.iter().map(|t| (t - c).abs()).fold(0.0, f64::max));
+    let all_reached = runs.iter().all(|r| r.chilldown_s.is_some());
+    let report = Report {
+        case: path.clone(),
+        parameter: args.param.clone(),
+        value,
+        station: station.clone(),
+        target_met: all_reached && largest_move_s.is_some_and(|m| m <= TARGET_S),
+        runs,
+        range_s,
+        largest_move_s,
+        target_s: TARGET_S,
+        wall_time_s: clock.elapsed().as_secs_f64(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    print_report(&report);
+    Ok(())
+}
+
+fn print_report(r: &Report) {
+    println!(
+        "{}: {} = {} moved by up to {} units in the last place; {} chilldown, {:.1} s",
+        r.case,
+        r.parameter,
+        r.value,
+        r.runs.len() / 2,
+        r.station,
+        r.wall_time_s
+    );
+    println!("  {:>5}  {:>24}  {:>12}  {:>8}", "ulps", "value", "chilldown s", "steps");
+    for run in &r.runs {
+        let chill = run.chilldown_s.map_or_else(|| "-".into(), |c| format!("{c:.3}"));
+        let steps = run.steps.map_or_else(|| "-".into(), |s| s.to_string());
+        print!("  {:>5}  {:>24}  {chill:>12}  {steps:>8}", run.ulps, run.value);
+        match &run.error {
+            Some(e) => println!("  {e}"),
+            None => println!(),
+        }
+    }
+    match (r.range_s, r.largest_move_s) {
+        (Some((lo, hi)), Some(m)) => println!(
+            "Chilldowns {lo:.3}–{hi:.3} s; largest move from the unperturbed run {m:.3} s (target ≤ {} s: {})",
+            r.target_s,
+            if r.target_met { "met" } else { "not met" }
+        ),
+        _ => println!("The unperturbed run did not reach its chilldown (target ≤ {} s: not met)", r.target_s),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ulps_step_through_neighbouring_doubles() {
+        assert_eq!(ulps_from(1.0, 1), Some(1.0 + f64::EPSILON));
+        assert_eq!(ulps_from(1.0, -1), Some(1.0 - f64::EPSILON / 2.0));
+        assert_eq!(ulps_from(1.0, 0), Some(1.0));
+        assert_eq!(ulps_from(-2.0, 1), Some(-2.0 + f64::EPSILON));
+        assert_eq!(ulps_from(-2.0, -1), Some(-2.0 - 2.0 * f64::EPSILON));
+        assert_eq!(ulps_from(f64::MIN_POSITIVE, -(f64::MIN_POSITIVE.to_bits() as i64)), None);
+        assert_eq!(ulps_from(0.0, 1), None);
+        assert_eq!(ulps_from(f64::MAX, 1), None);
+    }
+}
