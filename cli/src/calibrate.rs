@@ -171,6 +171,11 @@ pub fn run(args: &CalibrateArgs) -> Result<()> {
     let run = {
         let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
         match &args.coordinator {
+            None if out_dir.join(COORDINATOR_FILE).exists() => bail!(
+                "--out {}: the folder is a calibration on a coordinator ({COORDINATOR_FILE}); give the same \
+                 --coordinator to wait for it, or pick another --out",
+                out_dir.display()
+            ),
             None => rt.block_on(drive(spec, &label, &experiments, &out_dir, workers))?,
             Some(url) => rt.block_on(remote(spec, &label, &experiments, &out_dir, url))?,
         }

@@ -70,6 +70,10 @@ fn crossval_refits_run_on_the_coordinators_workers() {
         serde_json::from_str(&std::fs::read_to_string(joint.join("coordinator.json")).unwrap()).unwrap();
     assert_eq!(noted["coordinator"], server.url.as_str());
     let joint_id = noted["id"].as_i64().expect("id");
+    // the folder is that coordinator's calibration: a local run into it is refused
+    let mut local = Proc::start("calibrate-local", &dir, &["calibrate", &file_s, "--out", &joint_s], &[]);
+    let status = local.wait(Duration::from_secs(60)).expect("finished");
+    assert!(!status.success() && local.logs().contains("give the same --coordinator"), "{}", local.logs());
 
     let cv = dir.join("cv");
     let cv_s = cv.display().to_string();
