@@ -268,8 +268,7 @@ pub fn run(args: &CrossvalArgs) -> Result<()> {
     for (k, (name, dir, refit)) in refits.iter().enumerate() {
         println!("fold {} of {}: refit without `{name}`", k + 1, refits.len());
         crate::calibrate::run(refit)?;
-        let fit_dir = refit.out.clone().unwrap_or_else(|| dir.join("refit"));
-        let (result, figure) = predict_left_out(&spec, k, &base, dir, &fit_dir, args)?;
+        let (result, figure) = predict_left_out(&spec, k, &base, dir, &dir.join("refit"), args)?;
         results.push(result);
         figures.push(figure);
     }

@@ -208,12 +208,12 @@ impl Recovery<'_> {
         if self.beyond_other_phase(phase, u) {
             return Some(EdgeChange::Whole);
         }
-        let sat = fluid.saturation(p).ok().filter(|s| s.h_lg > 0.0)?;
+        let u_other = self.other_saturated_energy(phase)?;
         let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
         let margin = 1e-6 * (hi - lo);
-        let (t, u_other) = match phase {
-            Phase::Liquid => (hi - margin, sat.h_g - p / sat.rho_g),
-            Phase::Gas => (lo + margin, sat.h_l - p / sat.rho_l),
+        let t = match phase {
+            Phase::Liquid => hi - margin,
+            Phase::Gas => lo + margin,
         };
         let props = fluid.phase_props(phase, p, t).ok()?;
         let beyond = match phase {
@@ -235,10 +235,10 @@ impl Recovery<'_> {
     /// clamped into its own table.
     fn beyond_other_phase(&self, phase: Phase, u: f64) -> bool {
         let (fluid, p) = (self.fluid, self.p);
-        match fluid.saturation(p).ok().filter(|s| s.h_lg > 0.0) {
-            Some(sat) => match phase {
-                Phase::Liquid => u > sat.h_g - p / sat.rho_g,
-                Phase::Gas => u < sat.h_l - p / sat.rho_l,
+        match self.other_saturated_energy(phase) {
+            Some(u_other) => match phase {
+                Phase::Liquid => u > u_other,
+                Phase::Gas => u < u_other,
             },
             None => {
                 let other = match phase {
@@ -250,6 +250,16 @@ impl Recovery<'_> {
                     && fluid.temperature_from_energy(other, p, u, guess).is_ok()
             }
         }
+    }
+
+    /// The specific internal energy of the other phase than `phase` saturated at the cell's
+    /// pressure, J/kg; `None` where the table gives no saturation there.
+    fn other_saturated_energy(&self, phase: Phase) -> Option<f64> {
+        let (sat, p) = (self.fluid.saturation(self.p).ok().filter(|s| s.h_lg > 0.0)?, self.p);
+        Some(match phase {
+            Phase::Liquid => sat.h_g - p / sat.rho_g,
+            Phase::Gas => sat.h_l - p / sat.rho_l,
+        })
     }
 
     /// The temperature of a phase of mass `m` and energy `e` per unit volume (`guess` to start
