@@ -17,9 +17,12 @@
 //!   parameters from their starts. A per-experiment copy of a case field that belongs to the
 //!   left-out experiment is not refitted (nothing constrains it) and the prediction uses the
 //!   left-out case's own value: a new run's apparatus is not known in advance.
-//! - The band is that of the model runs at posterior draws (the parameters' uncertainty); its
-//!   coverage counts the measurements whose value lies between the band's 5 and 95 % at the
-//!   measurement's time (linear between the band's times).
+//! - The band is the posterior-predictive band of a measurement that `cryofit predict` writes
+//!   (`p05`–`p95`: the model at posterior draws plus an error of the refit's own residual σ per
+//!   station; see `predict`'s decision); its coverage counts the left-out measurements whose
+//!   value lies between the band's 5 and 95 % at the measurement's time (linear between the
+//!   band's times). The coverage of the parameters' band alone (`q05`–`q95`) is reported beside
+//!   it: the share of the measurements that the parameters' uncertainty by itself explains.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -166,6 +169,8 @@ struct FoldResult {
     chilldown: Option<(String, Option<f64>, Option<f64>)>,
     /// Covered and total measurements, or why there is no band.
     coverage: Result<(usize, usize), String>,
+    /// The measurements covered by the parameters' band alone (`q05`–`q95`).
+    parameter_covered: Option<usize>,
     refit_cost: Option<f64>,
 }
 
@@ -186,25 +191,42 @@ fn band_at(band: &[(f64, f64, f64)], t: f64) -> Option<(f64, f64)> {
 /// Per station, the band's rows `(time, 5 %, 95 %)` sorted by time.
 type Bands = BTreeMap<String, Vec<(f64, f64, f64)>>;
 
-/// The band per station (wall temperature) from a `bands.csv`.
-fn read_bands(path: &Path) -> Result<Bands> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+/// The bands per station (wall temperature) from a `bands.csv`: the measurement's
+/// posterior-predictive band (`p05`–`p95`) and the parameters' band (`q05`–`q95`). The first is
+/// an error when the file has none (a calibration without residuals to size it).
+fn read_bands(path: &Path) -> Result<(Bands, Bands)> {
+    let file = path.display();
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {file}"))?;
     let mut reader = csv::Reader::from_reader(text.as_bytes());
-    let mut m: BTreeMap<String, Vec<(f64, f64, f64)>> = BTreeMap::new();
+    let header = reader.headers().with_context(|| format!("{file}: unreadable header"))?.clone();
+    let column =
+        |name: &str| header.iter().position(|h| h == name).ok_or_else(|| anyhow!("{file}: no `{name}` column"));
+    let [t, station, quantity, q05, q95, p05, p95] =
+        ["time_s", "station", "quantity", "q05", "q95", "p05", "p95"].map(column);
+    let (t, station, quantity, q05, q95, p05, p95) = (t?, station?, quantity?, q05?, q95?, p05?, p95?);
+    let (mut predictive, mut parameters) = (Bands::new(), Bands::new());
     for record in reader.records() {
-        let r = record.with_context(|| format!("{}: unreadable row", path.display()))?;
-        if r.get(3) != Some("wall_temperature_k") {
+        let r = record.with_context(|| format!("{file}: unreadable row"))?;
+        if r.get(quantity) != Some("wall_temperature_k") {
             continue;
         }
-        let num = |i: usize| -> Result<f64> {
-            r.get(i).and_then(|v| v.parse().ok()).ok_or_else(|| anyhow!("{}: a row without numbers", path.display()))
+        let num = |i: usize| -> Option<f64> { r.get(i).and_then(|v| v.parse().ok()) };
+        let (Some(time), Some(lo), Some(hi)) = (num(t), num(q05), num(q95)) else {
+            bail!("{file}: a row without numbers");
         };
-        m.entry(r.get(1).unwrap_or_default().to_string()).or_default().push((num(0)?, num(4)?, num(6)?));
+        let name = r.get(station).unwrap_or_default().to_string();
+        parameters.entry(name.clone()).or_default().push((time, lo, hi));
+        if let (Some(lo), Some(hi)) = (num(p05), num(p95)) {
+            predictive.entry(name).or_default().push((time, lo, hi));
+        }
     }
-    for v in m.values_mut() {
+    if predictive.is_empty() {
+        bail!("{file}: no measurement band (the refit's result.json has no wall-temperature residuals to size it)");
+    }
+    for v in predictive.values_mut().chain(parameters.values_mut()) {
         v.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
-    Ok(m)
+    Ok((predictive, parameters))
 }
 
 /// The measured wall temperatures inside the band: (covered, total).
@@ -332,8 +354,9 @@ fn predict_left_out(
         &std::fs::read_to_string(&data_path).with_context(|| format!("cannot read {data_label}"))?,
         &data_label,
     )?;
+    let parameter_covered = band.as_ref().ok().map(|(_, b)| coverage(&data, b).0);
     let coverage = match &band {
-        Ok(b) => Ok(coverage(&data, b)),
+        Ok((b, _)) => Ok(coverage(&data, b)),
         Err(why) => Err(format!("{why:#}")),
     };
     let refit: serde_json::Value =
@@ -357,13 +380,13 @@ fn predict_left_out(
                 .get(&(station.clone(), q.clone()))
                 .map(|m| m.times.iter().copied().zip(m.values.iter().copied()).collect())
                 .unwrap_or_default(),
-            band: band.as_ref().ok().and_then(|b| b.get(station).cloned()),
+            band: band.as_ref().ok().and_then(|(b, _)| b.get(station).cloned()),
         })
         .collect();
     let note = match &coverage {
         Ok((c, t)) if *t > 0 => format!("band covers {:.0} % of the measurements", 100.0 * *c as f64 / *t as f64),
         Ok(_) => "the band and the measurements do not overlap in time".into(),
-        Err(_) => "no band: the refit has no posterior that holds".into(),
+        Err(_) => "no band (crossval.json says why)".into(),
     };
     let figure = Figure {
         name: format!("crossval-{}", name.replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "-")),
@@ -372,11 +395,21 @@ fn predict_left_out(
             title: format!("{}: {name} predicted by the refit without it — {note}", spec.name),
             value_label: "wall temperature (K)".into(),
             value_scale: 1.0,
-            band_label: format!("5–95 % posterior predictive ({} runs)", args.samples),
+            band_label: format!(
+                "5–95 % posterior predictive of a measurement ({} runs ± the refit's residual σ)",
+                args.samples
+            ),
             panels,
         })),
     };
-    let result = FoldResult { experiment: name, rms, chilldown, coverage, refit_cost: refit["best_cost"].as_f64() };
+    let result = FoldResult {
+        experiment: name,
+        rms,
+        chilldown,
+        coverage,
+        parameter_covered,
+        refit_cost: refit["best_cost"].as_f64(),
+    };
     Ok((result, figure))
 }
 
@@ -390,7 +423,7 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
                 "left_out": r.experiment, "refit_cost": r.refit_cost, "rms_k": r.rms,
                 "chilldown": {"station": station, "data_s": data, "model_s": model, "relative_error": error},
                 "band": match &r.coverage {
-                    Ok((c, t)) => json!({"covered": c, "measurements": t}),
+                    Ok((c, t)) => json!({"covered": c, "measurements": t, "covered_by_parameter_band": r.parameter_covered}),
                     Err(why) => json!({"none": why}),
                 },
             })
@@ -402,10 +435,12 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
         .collect();
     let (covered, total) =
         results.iter().filter_map(|r| r.coverage.as_ref().ok()).fold((0, 0), |(a, b), (c, t)| (a + c, b + t));
+    let parameter_covered: usize = results.iter().filter_map(|r| r.parameter_covered).sum();
     let summary = json!({
         "folds": folds,
         "mean_absolute_chilldown_error": (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
         "band_coverage": (total > 0).then(|| covered as f64 / total as f64),
+        "parameter_band_coverage": (total > 0).then(|| parameter_covered as f64 / total as f64),
         "folds_with_band": results.iter().filter(|r| r.coverage.is_ok()).count(),
     });
     let mut csv = CsvText::new([
@@ -416,15 +451,17 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
         "chilldown_model_s",
         "covered",
         "measurements",
+        "covered_by_parameter_band",
     ])?;
     for r in results {
         let (cs, d, m) = r.chilldown.clone().unwrap_or_default();
         let (c, t) =
             r.coverage.as_ref().map_or((String::new(), String::new()), |(c, t)| (c.to_string(), t.to_string()));
+        let pc = r.parameter_covered.map(|c| c.to_string()).unwrap_or_default();
         for (station, rms) in &r.rms {
             let last = *station == cs;
             let opt = |v: Option<f64>| if last { v.map(fmt_num).unwrap_or_default() } else { String::new() };
-            csv.row([r.experiment.as_str(), station, &fmt_num(*rms), &opt(d), &opt(m), &c, &t])?;
+            csv.row([r.experiment.as_str(), station, &fmt_num(*rms), &opt(d), &opt(m), &c, &t, &pc])?;
         }
     }
     let mut files: Vec<(String, Vec<u8>)> = vec![
@@ -455,7 +492,12 @@ fn print_table(results: &[FoldResult]) {
             None => "no chilldown".into(),
         };
         let band = match &r.coverage {
-            Ok((c, t)) if *t > 0 => format!("band covers {c} of {t} ({:.0} %)", 100.0 * *c as f64 / *t as f64),
+            Ok((c, t)) if *t > 0 => {
+                let own = r.parameter_covered.map_or_else(String::new, |p| {
+                    format!("; the parameters' band alone {:.0} %", 100.0 * p as f64 / *t as f64)
+                });
+                format!("band covers {c} of {t} ({:.0} %{own})", 100.0 * *c as f64 / *t as f64)
+            }
             Ok(_) => "band and data do not overlap".into(),
             Err(why) => format!("no band ({why})"),
         };

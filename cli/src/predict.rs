@@ -7,6 +7,21 @@
 //! [`crate::param_values`]): its shared ones to any case, its per-experiment ones only when the case
 //! is taken as that experiment (`--experiment`, by default the case file's stem); the others are
 //! skipped and named on stderr.
+//!
+//! `bands.csv` holds two bands per probe row: `q05`–`q95`, the model's spread over the posterior
+//! draws (the parameters' uncertainty alone), and `p05`–`p95`, the posterior-predictive band of a
+//! measurement, the paper's eq. "bayes_forecast" `P(d_n | d) = ∫ P(d_n | θ) P(θ | d) dθ`.
+//!
+//! Decision: `P(d_n | θ)` is the model at θ plus a Gaussian error whose σ is that of the
+//! calibration's own residuals: per station and quantity, the RMS of model − data at the best
+//! point pooled over the calibration's experiments (`result.json`, `fit`), which is the maximum-
+//! likelihood σ of a Gaussian error given the best point; a station the calibration did not fit
+//! takes the quantity's RMS pooled over all its stations. The weights' σ (the instruments' noise)
+//! would claim the model is as good as the thermocouples; a fit whose RMS is tens of kelvin
+//! predicts a new measurement no better than that, and a 90 % band that says otherwise covers far
+//! fewer than 90 % of new measurements. A quantity the calibration did not fit has no `p05`/`p95`
+//! (empty cells). The band of a row is the mixture of N(model at each draw, σ²), its 5 and 95 %
+//! points found by bisection.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -49,9 +64,15 @@ pub struct PredictArgs {
     pub(crate) experiment: Option<String>,
 }
 
-/// The parameter sets to run: posterior draws completed with the best and fixed values.
-fn draws(dir: &Path, n: usize, seed: u64) -> Result<(Vec<BTreeMap<String, f64>>, &'static str)> {
-    let (result_path, result) = read_result_json(dir, "--from")?;
+/// The parameter sets to run: posterior draws completed with the best and fixed values
+/// (`result` is the calibration's `result.json`, read from `result_path` in `dir`).
+fn draws(
+    dir: &Path,
+    result_path: &Path,
+    result: &serde_json::Value,
+    n: usize,
+    seed: u64,
+) -> Result<(Vec<BTreeMap<String, f64>>, &'static str)> {
     let number_map = |v: &serde_json::Value, field: &str| -> Result<BTreeMap<String, f64>> {
         let obj =
             v.as_object().ok_or_else(|| anyhow!("{}: `{field}` is missing or not an object", result_path.display()))?;
@@ -169,6 +190,90 @@ fn read_draws(text: &str, file: &str) -> Result<(Vec<String>, Vec<Vec<f64>>)> {
     Ok((names, rows))
 }
 
+/// The σ of a measurement about the model (see the module's decision), from a calibration's
+/// `result.json`: per (station, quantity) and, for stations it did not fit, per quantity.
+#[derive(Debug, Default, PartialEq)]
+struct ResidualSigma {
+    series: BTreeMap<(String, String), f64>,
+    quantity: BTreeMap<String, f64>,
+}
+
+impl ResidualSigma {
+    /// Pools `fit.<experiment>.series[]` (`rms`, `points`) of `result` over the experiments.
+    fn from_result(result: &serde_json::Value) -> Self {
+        let mut series: BTreeMap<(String, String), (f64, f64)> = BTreeMap::new();
+        let mut quantity: BTreeMap<String, (f64, f64)> = BTreeMap::new();
+        for fit in result["fit"].as_object().into_iter().flat_map(|m| m.values()) {
+            for s in fit["series"].as_array().into_iter().flatten() {
+                let (Some(station), Some(q), Some(rms), Some(n)) =
+                    (s["station"].as_str(), s["quantity"].as_str(), s["rms"].as_f64(), s["points"].as_f64())
+                else {
+                    continue;
+                };
+                if !rms.is_finite() || n <= 0.0 {
+                    continue;
+                }
+                for acc in [
+                    series.entry((station.to_string(), q.to_string())).or_default(),
+                    quantity.entry(q.to_string()).or_default(),
+                ] {
+                    acc.0 += rms * rms * n;
+                    acc.1 += n;
+                }
+            }
+        }
+        let pooled = |(sq, n): (f64, f64)| (sq / n).sqrt();
+        Self {
+            series: series.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
+            quantity: quantity.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
+        }
+    }
+
+    fn get(&self, station: &str, quantity: &str) -> Option<f64> {
+        self.series
+            .get(&(station.to_string(), quantity.to_string()))
+            .or_else(|| self.quantity.get(quantity))
+            .copied()
+            .filter(|s| *s > 0.0)
+    }
+}
+
+/// Standard normal CDF, from the complementary error function's Chebyshev-fitted form
+/// (fractional error below 1.2e-7 everywhere).
+fn normal_cdf(z: f64) -> f64 {
+    let x = z.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.5 * x);
+    let poly = -x * x - 1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let erfc = t * poly.exp();
+    if z >= 0.0 { 1.0 - 0.5 * erfc } else { 0.5 * erfc }
+}
+
+/// The `q` quantile of the equal-weight mixture of N(c, σ²) over `centres`, by bisection (80
+/// halvings of a bracket 20 σ wider than the centres' range: far below a rounding of the value).
+fn mixture_quantile(centres: &[f64], sigma: f64, q: f64) -> f64 {
+    if centres.is_empty() || sigma.is_nan() || sigma <= 0.0 {
+        return f64::NAN;
+    }
+    let cdf = |x: f64| centres.iter().map(|c| normal_cdf((x - c) / sigma)).sum::<f64>() / centres.len() as f64;
+    let mut lo = centres.iter().copied().fold(f64::INFINITY, f64::min) - 10.0 * sigma;
+    let mut hi = centres.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 10.0 * sigma;
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if cdf(mid) < q {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 fn quantile(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
@@ -188,7 +293,9 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {case_path}"))?;
     let case = Case::from_toml(&text, &case_path)?;
     let base = driver::case_parameters(&case).map_err(|e| anyhow!("{case_path}: {e}"))?;
-    let (sets, method) = draws(&args.from, args.samples, args.seed)?;
+    let (result_path, result) = read_result_json(&args.from, "--from")?;
+    let (sets, method) = draws(&args.from, &result_path, &result, args.samples, args.seed)?;
+    let residual = ResidualSigma::from_result(&result);
     let experiment = crate::param_values::experiment_of(&args.case, args.experiment.as_deref());
     if let Some(first) = sets.first() {
         crate::param_values::report_skipped(&apparatus::sort(first, Some(&experiment)).skipped, &experiment);
@@ -216,13 +323,16 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     if ok.iter().any(|o| o.probes.len() != n_rows) {
         bail!("internal error: runs recorded different numbers of probe values");
     }
-    let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95"])?;
+    let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
     let mut values = Vec::with_capacity(ok.len());
     for k in 0..n_rows {
         let o = &ok[0].probes[k];
         values.clear();
         values.extend(ok.iter().map(|r| r.probes[k].value));
         values.sort_by(f64::total_cmp);
+        let (p05, p95) = residual.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
+            (fmt_num(mixture_quantile(&values, sigma, 0.05)), fmt_num(mixture_quantile(&values, sigma, 0.95)))
+        });
         bands.row([
             &fmt_num(o.time_s),
             o.station.as_str(),
@@ -231,6 +341,8 @@ pub fn run(args: &PredictArgs) -> Result<()> {
             &fmt_num(quantile(&values, 0.05)),
             &fmt_num(quantile(&values, 0.5)),
             &fmt_num(quantile(&values, 0.95)),
+            &p05,
+            &p95,
         ])?;
     }
     let bands = bands.finish()?;
@@ -259,6 +371,12 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         "failed": failures.len(),
         "failures": failures,
         "chilldown_time_s": chill,
+        "residual_sigma": {
+            "series": residual.series.iter()
+                .map(|((st, q), v)| json!({"station": st, "quantity": q, "sigma": v}))
+                .collect::<Vec<_>>(),
+            "quantity": residual.quantity,
+        },
     });
     let out_dir = args.out.clone().unwrap_or_else(|| {
         let stem = args.case.file_stem().map_or_else(|| "case".into(), |s| s.to_string_lossy().into_owned());
@@ -275,6 +393,56 @@ pub fn run(args: &PredictArgs) -> Result<()> {
             _ => println!("  {st} chilldown: not reached within the case"),
         }
     }
+    let sigmas: Vec<String> =
+        stations.iter().filter_map(|st| Some(format!("{st} {:.1}", residual.get(st, "wall_temperature_k")?))).collect();
+    if !sigmas.is_empty() {
+        println!(
+            "  measurement band p05–p95: the model at the draws ± the calibration's residual σ (wall temperature, K: {})",
+            sigmas.join(", ")
+        );
+    }
     println!("  wrote bands.csv, prediction.json to {}", out_dir.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_normal_cdf_matches_known_values() {
+        for (z, p) in
+            [(0.0, 0.5), (1.0, 0.841_344_746), (-1.644_853_627, 0.05), (2.326_347_874, 0.99), (-4.0, 3.167_124e-5)]
+        {
+            assert!((normal_cdf(z) - p).abs() < 2e-7 * p.max(1e-3), "Φ({z}) = {} against {p}", normal_cdf(z));
+        }
+    }
+
+    #[test]
+    fn a_mixture_of_one_is_the_normal_and_of_two_far_apart_splits() {
+        let q = mixture_quantile(&[100.0], 10.0, 0.95);
+        assert!((q - 116.448_536).abs() < 1e-4, "{q}");
+        // two components 1000 σ apart: the 5 % point is the lower one's 10 % point
+        let q = mixture_quantile(&[0.0, 1000.0], 1.0, 0.05);
+        assert!((q + 1.281_551_6).abs() < 1e-5, "{q}");
+    }
+
+    #[test]
+    fn residual_sigma_pools_over_experiments_by_points() {
+        let result = json!({"fit": {
+            "a": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 3.0, "points": 1}]},
+            "b": {"series": [
+                {"station": "TS1", "quantity": "wall_temperature_k", "rms": 5.0, "points": 3},
+                {"station": "TS2", "quantity": "wall_temperature_k", "rms": 1.0, "points": 4}
+            ]}
+        }});
+        let r = ResidualSigma::from_result(&result);
+        let ts1 = ((9.0 + 3.0 * 25.0) / 4.0f64).sqrt();
+        assert!((r.get("TS1", "wall_temperature_k").unwrap() - ts1).abs() < 1e-12);
+        assert_eq!(r.get("TS2", "wall_temperature_k"), Some(1.0));
+        // a station the calibration did not fit takes the quantity's pooled σ
+        let all = ((9.0 + 75.0 + 4.0) / 8.0f64).sqrt();
+        assert!((r.get("TS9", "wall_temperature_k").unwrap() - all).abs() < 1e-12);
+        assert_eq!(r.get("TS1", "pressure_pa"), None);
+    }
 }

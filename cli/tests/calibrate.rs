@@ -141,13 +141,29 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     ]));
     assert!(stdout.contains("TS4 chilldown"), "{stdout}");
     let bands = std::fs::read_to_string(pred.join("bands.csv")).unwrap();
-    assert!(bands.starts_with("time_s,station,x_m,quantity,q05,q50,q95\n"));
+    assert!(bands.starts_with("time_s,station,x_m,quantity,q05,q50,q95,p05,p95\n"));
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(pred.join("prediction.json")).unwrap()).unwrap();
+    // the measurement's band: the parameters' band widened by the calibration's residual σ at the
+    // station, which the calibration's own fit gives
+    let result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
+    let fitted = result["fit"]["case"]["series"].as_array().unwrap();
+    let sigmas = p["residual_sigma"]["series"].as_array().unwrap();
+    assert_eq!(sigmas.len(), fitted.len(), "{sigmas:?}");
+    for (s, f) in sigmas.iter().zip(fitted) {
+        assert_eq!(s["station"], f["station"]);
+        assert!((s["sigma"].as_f64().unwrap() - f["rms"].as_f64().unwrap()).abs() < 1e-9 * f["rms"].as_f64().unwrap());
+    }
     for line in bands.lines().skip(1).filter(|l| l.contains("wall_temperature_k")) {
         let v: Vec<f64> = line.split(',').skip(4).map(|x| x.parse().unwrap()).collect();
         assert!(v[0] <= v[1] && v[1] <= v[2], "{line}");
+        let station = line.split(',').nth(1).unwrap();
+        let sigma = sigmas.iter().find(|s| s["station"] == station).unwrap()["sigma"].as_f64().unwrap();
+        // half the draws lie on each side of the median, so the mixture's 5 % point lies at least
+        // Φ⁻¹(0.9) σ below it (and its 95 % point as far above)
+        assert!(v[3] <= v[1] - 1.2815 * sigma && v[4] >= v[1] + 1.2815 * sigma, "{line} σ {sigma}");
     }
-    let p: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(pred.join("prediction.json")).unwrap()).unwrap();
     assert_eq!(p["samples"], 6);
     assert_eq!(p["method"], "Gaussian approximation of the variance stage");
     std::fs::remove_dir_all(&dir).ok();
