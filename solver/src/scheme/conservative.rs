@@ -70,6 +70,27 @@ impl Scheme<'_> {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             let mass = [w.mass_g.as_slice(), w.mass_l.as_slice()];
             w.junction_heat[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j));
+            // Decision: the kinetic energy of the mass that changes phase is booked where the
+            // two equations disagree about it. The phase-change momentum's work at junction j,
+            // −(Γ_j/2)(v_g² − v_l²) V_j, takes the mean Γ_j of the junction's cells, while the
+            // donor-cell kinetic-energy fluxes above (`booked_heat`'s carried mass) charge a
+            // cell's generated mass Γ_i V_i at the velocities of the face its flow enters by.
+            // Their difference, ½ v_k² (Γ_j V_j − Γ_i V_i) per phase (the liquid with −Γ), does
+            // not vanish under refinement where the velocities jump within a cell at a fast
+            // outlet: it lost 31 W (−8.7 kJ, an energy balance error of 3.5e-3) of the steady
+            // flashing outflow of methane saturated at 11 atm, on 15 to 120 cells and at any
+            // time step. Booked here it leaves −0.84 kJ.
+            let vol_j = g.area_junction[j] * g.dx_junction(j);
+            if vol_j > 0.0 && w.mech[j].gamma != 0.0 {
+                let mut corr = 0.0;
+                for (k, sign) in [(0usize, 1.0), (1usize, -1.0)] {
+                    let v = v1[k][j];
+                    let down = if v >= 0.0 { (j < st.n).then_some(j) } else { j.checked_sub(1) };
+                    let generated = down.map_or(0.0, |c| w.gamma_used[c] * g.volume[c]);
+                    corr += sign * 0.5 * v * v * (w.mech[j].gamma * vol_j - generated);
+                }
+                w.junction_heat[j] += corr / vol_j;
+            }
         }
         for i in 0..st.n {
             let (heat_g, heat_l) = self.dissipation_split(st.s, &w.junction_heat, i);

@@ -37,8 +37,9 @@ impl Scheme<'_> {
             let s = st.s;
             let jc = self.junction_coefficients(s, j, st.inlet0, st.outlet0, grav, st.dt);
             let (mut diag, mut rhs) = jc.momentum_block(s.v_g[j], s.v_l[j], st.dt, self.grid.dx_junction(j));
-            self.phase_change_momentum(st, &w.sources, j, &mut diag, &mut rhs);
+            let gamma = self.phase_change_momentum(st, &w.sources, j, &mut diag, &mut rhs);
             w.mech[j] = self.implicit_convection(st, w, j, &jc, &mut diag);
+            w.mech[j].gamma = gamma;
             w.alpha_mom[j] = Some((jc.a_g, jc.a_l));
             w.diag[j] = diag;
             w.rhs2[j] = rhs;
@@ -46,7 +47,8 @@ impl Scheme<'_> {
     }
 
     /// Momentum of the mass that changes phase at junction `j`, added to its block and
-    /// right-hand side.
+    /// right-hand side; returns the junction's Γ, kg/(m³ s) (0 without phase change), whose
+    /// kinetic energy `dissipated_heat` reconciles with the continuity equations'.
     ///
     /// The paper's A Γ_g u_i in the vapour's conservative momentum equation and −A Γ_g u_i in the
     /// liquid's are, in the non-conservative form here, Γ_g (v_I − v_g) and −Γ_g (v_I − v_l). With
@@ -60,7 +62,7 @@ impl Scheme<'_> {
         j: usize,
         diag: &mut Matrix2<f64>,
         rhs: &mut Vector2<f64>,
-    ) {
+    ) -> f64 {
         let n = st.n;
         let (vg, vl) = (st.s.v_g[j], st.s.v_l[j]);
         // Decision: v_I the mean, because then the kinetic energy of the two phases changes
@@ -95,6 +97,7 @@ impl Scheme<'_> {
             diag[(0, 1)] += c;
             rhs[0] += c * vg;
         }
+        2.0 * mt
     }
 
     /// Implicit donor-cell convection v^n (v_j − v_up)^{n+1} / dx of junction `j`, added to its
@@ -123,6 +126,7 @@ impl Scheme<'_> {
             drag: jc.drag,
             drag_explicit: jc.drag_explicit,
             conv: [None; 2],
+            gamma: 0.0,
         };
         for (k, (v, ar)) in [(vg, jc.ar_g), (vl, jc.ar_l)].into_iter().enumerate() {
             let old_v = |jj: usize| if k == 0 { s.v_g[jj] } else { s.v_l[jj] };
@@ -425,6 +429,8 @@ pub(super) struct JunctionWork {
     /// kg/(m³ s), and the upstream junction; `None` where the term has a Bernoulli form or there
     /// is no upstream junction.
     conv: [Option<(f64, usize)>; 2],
+    /// The junction's Γ in the phase-change momentum, kg/(m³ s) (0 without phase change).
+    pub(super) gamma: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
