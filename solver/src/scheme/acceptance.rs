@@ -73,27 +73,50 @@ pub(super) fn all_finite(next: &State) -> Result<(), Rejection> {
 /// In a cell full of liquid even a small volume error is a large pressure correction in the
 /// next step (liquid is stiff): the error is also limited by the pressure change it implies,
 /// |e| / κ with κ the cell's volume compressibility.
-pub(super) fn volume_error_check(st: &StepInput, w: &Work, next: &State) -> Result<(), Rejection> {
+///
+/// Otherwise returns the volume error's share of the step control: the largest ratio of a
+/// grown error to its cell's limit, and where. The error a step leaves grows with the step (the
+/// linearised equations of state are exact only as it vanishes), so the controller treats it as
+/// it treats a controlled variable's change ([`Scheme::change_control`]): a step that comes
+/// near the limit makes the next one shorter instead of the run growing its steps into a
+/// rejection. (Without it, volume errors were nearly all the rejected steps of the NBS runs —
+/// 1 389 of 1 395 on the saturated 2.5 atm run — each a whole step wasted and the next halved.)
+pub(super) fn volume_error_check(st: &StepInput, w: &Work, next: &State) -> Result<ChangeRatio, Rejection> {
     let s = st.s;
-    let too_big = |i: usize| {
+    let ratio = |i: usize| {
         let (gp, lp, a) = (&next.gas[i], &next.liquid[i], next.alpha[i]);
         let kappa = a * gp.drho_dp / gp.rho + (1.0 - a) * lp.drho_dp / lp.rho;
-        let e = next.volume_error[i].abs();
-        e > MAX_VOLUME_ERROR || e > VOLUME_ERROR_PRESSURE_FRACTION * next.p[i].max(SCALE_PRESSURE_PA) * kappa
+        let limit = MAX_VOLUME_ERROR.min(VOLUME_ERROR_PRESSURE_FRACTION * next.p[i].max(SCALE_PRESSURE_PA) * kappa);
+        next.volume_error[i].abs() / limit
     };
-    let grew = |i: usize| !w.reset[i] && too_big(i) && next.volume_error[i].abs() > s.volume_error[i].abs();
-    if let Some(i) = (0..st.n)
-        .filter(|&i| grew(i))
-        .max_by(|&a, &b| next.volume_error[a].abs().total_cmp(&next.volume_error[b].abs()))
-    {
-        return Err(Rejection {
-            cell: i,
+    let grew = |i: usize| !w.reset[i] && next.volume_error[i].abs() > s.volume_error[i].abs();
+    let mut control = ChangeRatio {
+        ratio: 0.0,
+        worst: Rejection {
+            cell: 0,
             variable: "volume error",
-            value: next.volume_error[i],
+            value: 0.0,
             reason: "phase volumes do not fill the cell",
-        });
+        },
+    };
+    // the cell with the largest error among those above their limit
+    let mut rejected: Option<usize> = None;
+    for i in (0..st.n).filter(|&i| grew(i)) {
+        let r = ratio(i);
+        let e = next.volume_error[i];
+        if r > 1.0 && rejected.is_none_or(|k| e.abs() > next.volume_error[k].abs()) {
+            rejected = Some(i);
+        }
+        if r > control.ratio {
+            control.ratio = r;
+            control.worst.cell = i;
+            control.worst.value = e;
+        }
     }
-    Ok(())
+    match rejected {
+        Some(i) => Err(Rejection { cell: i, value: next.volume_error[i], ..control.worst }),
+        None => Ok(control),
+    }
 }
 
 /// The largest change of a controlled variable over a step as a fraction of its allowed
@@ -115,5 +138,72 @@ impl ChangeRatio {
             self.ratio = if r.is_finite() { r } else { f64::INFINITY };
             self.worst = Rejection { cell, variable, value: new, reason: "changed by more than 25 %" };
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::case::BoundaryKind;
+    use crate::fluids::PhaseProps;
+    use crate::model::BoundaryState;
+
+    /// Two gas-filled cells at 1 bar (κ = 1/p, so the absolute limit `MAX_VOLUME_ERROR` binds)
+    /// whose volume errors grow from zero to `errors` over a step.
+    fn check(errors: [f64; 2], reset: [bool; 2]) -> Result<ChangeRatio, Rejection> {
+        let gas = PhaseProps { rho: 1.0, drho_dp: 1.0e-5, ..PhaseProps::default() };
+        let liquid = PhaseProps { rho: 800.0, drho_dp: 1.0e-6, ..PhaseProps::default() };
+        let old = State {
+            p: vec![1.0e5; 2],
+            alpha: vec![1.0; 2],
+            volume_error: vec![0.0; 2],
+            gas: vec![gas; 2],
+            liquid: vec![liquid; 2],
+            ..State::default()
+        };
+        let next = State { volume_error: errors.to_vec(), ..old.clone() };
+        let b = BoundaryState {
+            kind: BoundaryKind::Closed,
+            p: 1.0e5,
+            alpha: 1.0,
+            t_g: 300.0,
+            t_l: 77.0,
+            v_g: 0.0,
+            v_l: 0.0,
+            gas,
+            liquid,
+            open_fraction: 1.0,
+            loss: 0.0,
+        };
+        let st = StepInput {
+            s: &old,
+            dt: 0.1,
+            n: 2,
+            inlet0: &b,
+            outlet0: &b,
+            inlet1: &b,
+            outlet1: &b,
+            dp_in: 0.0,
+            dp_out: 0.0,
+        };
+        let w = Work { reset: reset.to_vec(), ..Work::default() };
+        volume_error_check(&st, &w, &next)
+    }
+
+    #[test]
+    fn a_volume_error_below_its_limit_is_a_share_of_the_step_control() {
+        let c = check([0.5 * MAX_VOLUME_ERROR, -0.75 * MAX_VOLUME_ERROR], [false; 2]).unwrap();
+        assert!((c.ratio - 0.75).abs() < 1e-12, "{}", c.ratio);
+        assert_eq!((c.worst.cell, c.worst.variable), (1, "volume error"));
+        // an error a trace reset made is not the step's
+        let c = check([0.5 * MAX_VOLUME_ERROR, -0.75 * MAX_VOLUME_ERROR], [false, true]).unwrap();
+        assert!((c.ratio - 0.5).abs() < 1e-12 && c.worst.cell == 0, "{c:?}");
+    }
+
+    #[test]
+    fn a_volume_error_above_its_limit_rejects_the_step_naming_the_largest() {
+        let r = check([1.5 * MAX_VOLUME_ERROR, -2.5 * MAX_VOLUME_ERROR], [false; 2]).unwrap_err();
+        assert_eq!((r.cell, r.variable, r.value), (1, "volume error", -2.5 * MAX_VOLUME_ERROR));
+        assert!(check([1.5 * MAX_VOLUME_ERROR, 0.0], [true, false]).is_ok());
     }
 }

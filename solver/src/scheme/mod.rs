@@ -146,7 +146,8 @@ pub struct Rejection {
 /// What a step produced besides the new state.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct StepReport {
-    /// Largest change of a controlled variable as a fraction of its allowed change (≤ 1).
+    /// Largest change of a controlled variable, or volume error, as a fraction of its allowed
+    /// change or its limit (≤ 1).
     pub change_ratio: f64,
     /// Largest |volume error| over the cells.
     pub max_volume_error: f64,
@@ -275,8 +276,12 @@ impl<'a> Scheme<'a> {
             self.total_energy_flux(&next, st.dt, st.inlet1, st.outlet1);
         next.time = st.s.time + st.dt;
         all_finite(&next)?;
-        let change = self.change_control(st, &next)?;
-        volume_error_check(st, w, &next)?;
+        let mut change = self.change_control(st, &next)?;
+        // the volume error enters the step control like a controlled variable's change
+        let volume = volume_error_check(st, w, &next)?;
+        if volume.ratio > change.ratio {
+            change = volume;
+        }
         Ok((
             next,
             StepReport {
