@@ -70,6 +70,8 @@ fn sphere_cd(re: f64) -> f64 {
 ///   of intermittent flow ¾ C_D ρ_l v_r α (1 − α)/d_b, d_b = 2 √(σ/(g Δρ)) (twice the capillary
 ///   length, ≈ 2 mm for nitrogen: terminal velocity ≈ 0.25 m/s), faded out between α = 0.1 and
 ///   0.4 (a Weber diameter from the phasic slip of annular flow gives 10 µm bubbles);
+///   the fade is geometric, F_film (1 + F_bubbles/F_film)^b with b the bubbles' weight (1 below
+///   α = 0.1, 0 above 0.4): the same values at both ends as the film plus b times the bubbles;
 /// * dryout/mist: drops ¾ C_D ρ_g v_r (1 − α)/d_d, d_d = 12 σ/(ρ_g v_r²) ≤ `drop_d_max`, C_D Schiller–Naumann.
 ///
 /// Stratified and wavy are scaled by `idrag_strat_sc`, the rest by `idrag_disp_sc`. All tend to
@@ -90,14 +92,28 @@ pub fn interfacial_drag(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
     let d_b = bubble_diameter(s);
     let re_b = s.rho_l * v_r * d_b / s.mu_l.max(TINY);
     let bubbly = 1.0 - smooth_step((a - BUBBLY_VOID.0) / (BUBBLY_VOID.1 - BUBBLY_VOID.0));
-    let f_bubble = bubbly * 0.75 * sphere_cd(re_b) * s.rho_l * v_r * a * beta / d_b;
+    let f_bubbles = 0.75 * sphere_cd(re_b) * s.rho_l * v_r * a * beta / d_b;
+    // Decision: the bubbles' drag (∝ ρ_l) is hundreds of times the film's (∝ ρ_g), so faded
+    // out linearly it still ruled the drag a few hundredths below α = 0.4: the drag fell
+    // elevenfold between α = 0.37 and 0.40 (saturated nitrogen at 1 atm, 1 m/s slip; 1.2-fold
+    // faded geometrically). The momentum step takes α from the start of the step, and a
+    // cell near that edge oscillated (α 0.37–0.41 with a 1.5 s period, the gas velocity by
+    // ±9 %) with an amplitude that grew with the step (saturated 2.5 atm, 500 s: α 0.387–0.389
+    // at 15 ms steps, 0.371–0.408 at 0.12 s), its volume errors holding the steps down. Faded
+    // geometrically the drag changes by a bounded factor per unit α (e^(ln(F_b/F_f)·Δb)) and
+    // the oscillation is gone; the NBS nitrogen chilldowns moved by at most 0.4 s.
+    let f_intermittent = if bubbly > 0.0 && f_film > 0.0 {
+        f_film * (1.0 + f_bubbles / f_film).powf(bubbly)
+    } else {
+        f_film + bubbly * f_bubbles
+    };
 
     let d_d = particle_diameter(s.sigma, s.rho_g, v_r, d, p.drop_diameter_max);
     let re_d = s.rho_g * v_r * d_d / s.mu_g.max(TINY);
     let f_drop = 0.75 * sphere_cd(re_d) * s.rho_g * v_r * beta / d_d;
 
     let f = p.drag_stratified_scale * (regime.stratified * f_strat + regime.wavy * f_wavy)
-        + p.drag_dispersed_scale * (regime.annular * (f_film + f_bubble) + regime.dryout * f_drop);
+        + p.drag_dispersed_scale * (regime.annular * f_intermittent + regime.dryout * f_drop);
     if f.is_finite() { f.max(0.0) } else { 0.0 }
 }
 
