@@ -29,8 +29,8 @@ bisection. Above the critical pressure both phase tables hold the one supercriti
 a row's density branch cannot follow it across the pseudo-critical line (a temperature node just
 below Tc), the row continues from the equilibrium density.
 
-Pressures run from 1 kPa to 10 MPa (the pressure surges of a chilldown line reach several MPa,
-above the critical pressure of hydrogen and nitrogen), temperatures from the triple point to
+Pressures run from 1 kPa to 30 MPa (the pressure surges of a chilldown line reach several MPa,
+above the critical pressure of hydrogen and nitrogen, and its liquid hammer can pass 10 MPa), temperatures from the triple point to
 350 K. ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen (see data/fluids/README.md
 for which to use when).
 """
@@ -62,7 +62,11 @@ FLUIDS = {
 }
 
 P_MIN = 1.0e3  # 0.01 bar
-P_MAX = 1.0e7  # 100 bar: pressure surges in a chilldown line reach several MPa
+P_MAX = 3.0e7  # 300 bar: the liquid hammer of a chilldown line can pass 10 MPa (see pressure_segments)
+# The finely noded range: the critical regions and the surges a chilldown line usually reaches.
+P_DENSE = 1.0e7
+# Node spacing above P_DENSE, up to P_MAX (supercritical, far from every fluid's critical point).
+P_HIGH_STEP = 1.0e6
 T_MAX = 350.0
 METASTABLE_K = 20.0  # required reach past the saturation line
 MARGIN_INTERVALS = 2  # extra grid intervals computed past that reach
@@ -152,10 +156,15 @@ def pressure_segments(pc, refine=1):
     p_breaks.append(1.1 * pc)
     p_steps.append(2.0e4 / refine)
     for hi, step in SUPERCRITICAL_STEPS:
-        p_breaks.append(min(hi * pc, P_MAX))
+        p_breaks.append(min(hi * pc, P_DENSE))
         p_steps.append(step * pc)
-        if p_breaks[-1] >= P_MAX:
+        if p_breaks[-1] >= P_DENSE:
             break
+    # Above 10 MPa every 1 MPa: the first-contact liquid hammer of subcooled nitrogen at 11 atm
+    # drive passed 10 MPa (the Joukowsky surge ρ c Δv of a 15 m/s column), and ended the run at
+    # the table's edge.
+    p_breaks.append(P_MAX)
+    p_steps.append(P_HIGH_STEP)
     assert p_breaks[-1] == P_MAX and all(b > a for a, b in zip(p_breaks, p_breaks[1:]))
     return axis_segments(p_breaks, p_steps)
 

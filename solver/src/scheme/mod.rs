@@ -276,7 +276,7 @@ impl<'a> Scheme<'a> {
             self.total_energy_flux(&next, st.dt, st.inlet1, st.outlet1);
         next.time = st.s.time + st.dt;
         all_finite(&next)?;
-        let mut change = self.change_control(st, &next)?;
+        let mut change = self.change_control(st, w, &next)?;
         // the volume error enters the step control like a controlled variable's change
         let volume = volume_error_check(st, w, &next)?;
         if volume.ratio > change.ratio {
@@ -401,6 +401,9 @@ struct Work {
     sl_used: Vec<f64>,
     /// Per cell: whether a phase's temperature was reset (`state_recovery`).
     reset: Vec<bool>,
+    /// Per cell: whether a whole phase went over to the other at its table's edge
+    /// (`state_recovery`; exempt from the step's change control, [`Scheme::change_control`]).
+    merged: Vec<bool>,
     /// Per junction: the heat its momentum forces put into the fluid, W/m³ ([`momentum::booked_heat`];
     /// estimated in `provisional_velocities`, booked in `dissipated_heat`).
     junction_heat: Vec<f64>,
@@ -488,6 +491,7 @@ fn resize(w: &mut Work, n: usize) {
         v.resize(n, 0.0);
     }
     w.reset.resize(n, false);
+    w.merged.resize(n, false);
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);
     w.x.resize(n, Vector4::zeros());
