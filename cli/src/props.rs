@@ -74,6 +74,10 @@ pub fn run(args: &PropsArgs) -> Result<()> {
             match out.t_sat_k {
                 Some(ts) => format!("{ts:.4}"),
                 None if p >= c.p_critical_pa => "none (above the critical pressure)".into(),
+                None if p > c.p_triple_pa => format!(
+                    "none (within 0.5 % of the critical pressure, {:.0} Pa, where the table gives no saturation)",
+                    c.p_critical_pa
+                ),
                 None => "none (below the triple-point pressure)".into(),
             },
             if out.t_sat_k.is_some() { "K" } else { "" },
