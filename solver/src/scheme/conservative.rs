@@ -275,10 +275,27 @@ impl Scheme<'_> {
             let al = g.area_junction[jl] * self.open_fraction(jl, inlet, outlet);
             let ar = g.area_junction[jr] * self.open_fraction(jr, inlet, outlet);
             let (vl, vr) = (vel[jl], vel[jr]);
-            w.b[i] = g.volume[i] + dt * (vr.max(0.0) * ar - vl.min(0.0) * al);
+            w.b[i] = g.volume[i] + self.cell_outflow(vel, i, dt, inlet, outlet);
             w.a[i] = -dt * vl.max(0.0) * al;
             w.c[i] = dt * vr.min(0.0) * ar;
         }
+    }
+
+    /// The volume that flows out of cell `i` over the step at the junction velocities `vel`,
+    /// m³ (the donor-cell outflow of the transport matrix's diagonal).
+    pub(super) fn cell_outflow(
+        &self,
+        vel: &[f64],
+        i: usize,
+        dt: f64,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+    ) -> f64 {
+        let g = &self.grid;
+        let (jl, jr) = (i, i + 1);
+        let al = g.area_junction[jl] * self.open_fraction(jl, inlet, outlet);
+        let ar = g.area_junction[jr] * self.open_fraction(jr, inlet, outlet);
+        dt * (vel[jr].max(0.0) * ar - vel[jl].min(0.0) * al)
     }
 
     /// Volume of a phase carried through junction `j` over the step, m³: Δt v A α̂, α̂ the

@@ -73,9 +73,7 @@ impl Scheme<'_> {
                     // the work enters the cell's energy equation, whose donor-cell outflow
                     // carries part of it on: the diagonal of the conservative step's transport
                     // matrix (`transport_matrix`) shares it between the cell and its outflow
-                    let (jl, jr) = (c, c + 1);
-                    let open = |j: usize| g.area_junction[j] * self.open_fraction(j, st.inlet1, st.outlet1);
-                    let out = dt * (vel[jr].max(0.0) * open(jr) - vel[jl].min(0.0) * open(jl));
+                    let out = self.cell_outflow(vel, c, dt, st.inlet1, st.outlet1);
                     let de = work / (g.volume[c] + out);
                     if gas {
                         next.e_g[c] += de;
@@ -217,6 +215,15 @@ impl Scheme<'_> {
     }
 }
 
+/// Whether specific energy `u` of `phase` lies beyond `edge`, its properties at its table's edge
+/// towards the other phase ([`Recovery::edge_towards_other`]).
+fn beyond_edge(phase: Phase, u: f64, edge: &PhaseProps) -> bool {
+    match phase {
+        Phase::Liquid => u > edge.u,
+        Phase::Gas => u < edge.u,
+    }
+}
+
 /// A phase's recovered temperature, properties and conserved energy per unit volume, and
 /// whether its temperature was reset.
 type Recovered = (f64, PhaseProps, f64, bool);
@@ -277,7 +284,6 @@ impl Recovery<'_> {
     /// run ended. Holding the liquid at the top and booking the excess as an adjustment instead
     /// destroyed 136 kJ over that run.
     fn edge_phase_change(&self, phase: Phase, m: f64, e: f64, m_other: f64) -> Option<EdgeChange> {
-        let (fluid, p) = (self.fluid, self.p);
         if !(m_other > self.tiny && m > self.tiny) {
             return None;
         }
@@ -286,18 +292,8 @@ impl Recovery<'_> {
             return Some(EdgeChange::Whole);
         }
         let u_other = self.other_saturated_energy(phase)?;
-        let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
-        let margin = 1e-6 * (hi - lo);
-        let t = match phase {
-            Phase::Liquid => hi - margin,
-            Phase::Gas => lo + margin,
-        };
-        let props = fluid.phase_props(phase, p, t).ok()?;
-        let beyond = match phase {
-            Phase::Liquid => u > props.u,
-            Phase::Gas => u < props.u,
-        };
-        if !beyond {
+        let (t, props) = self.edge_towards_other(phase)?;
+        if !beyond_edge(phase, u, &props) {
             return None;
         }
         let mass = m * (u - props.u) / (u_other - props.u);
@@ -329,14 +325,22 @@ impl Recovery<'_> {
     /// heat into vapour and keeps the energy. (Vapour below the bottom of its table is still
     /// reset as a trace: condensing it would collapse its volume in a cell full of liquid.)
     fn liquid_above_top(&self, u: f64) -> bool {
-        if self.other_saturated_energy(Phase::Liquid).is_none() {
-            return false;
-        }
-        let Some((lo, hi)) = self.fluid.phase_temperature_range(Phase::Liquid, self.p) else {
-            return false;
+        self.other_saturated_energy(Phase::Liquid).is_some()
+            && self.edge_towards_other(Phase::Liquid).is_some_and(|(_, top)| beyond_edge(Phase::Liquid, u, &top))
+    }
+
+    /// The temperature and properties of `phase` at its table's edge towards the other phase
+    /// at the cell's pressure (the liquid's top, the gas's bottom), a millionth of the table's
+    /// range inside it.
+    fn edge_towards_other(&self, phase: Phase) -> Option<(f64, PhaseProps)> {
+        let (fluid, p) = (self.fluid, self.p);
+        let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
+        let margin = 1e-6 * (hi - lo);
+        let t = match phase {
+            Phase::Liquid => hi - margin,
+            Phase::Gas => lo + margin,
         };
-        let top = hi - 1e-6 * (hi - lo);
-        self.fluid.phase_props(Phase::Liquid, self.p, top).is_ok_and(|pr| u > pr.u)
+        Some((t, fluid.phase_props(phase, p, t).ok()?))
     }
 
     /// Whether specific energy `u` of `phase` belongs to the other phase at the cell's pressure:
