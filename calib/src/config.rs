@@ -157,7 +157,7 @@ impl AlgorithmName {
             AlgorithmName::Cmaes => &["population", "sigma", "stall_generations"],
             AlgorithmName::NelderMead => &["step"],
             AlgorithmName::Variance => &["restarts", "step"],
-            AlgorithmName::Mcmc => &["walkers", "burn_in", "spread"],
+            AlgorithmName::Mcmc => &["walkers", "burn_in", "spread", "temperature"],
         }
     }
 }
@@ -225,6 +225,57 @@ pub struct StageSpec {
     /// MCMC: initial spread of the walkers around the start, unit coordinates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spread: Option<f64>,
+    /// MCMC: temperature of the likelihood `exp(−S/(2T))`: a number ≥ 1, or `"noise"` for the
+    /// noise inflation `1 + 2σ_ε` that the last variance stage before it measured
+    /// (`McmcOptions::temperature` says why).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<Temperature>,
+}
+
+/// An MCMC stage's likelihood temperature ([`StageSpec::temperature`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Temperature {
+    /// This temperature.
+    Value(f64),
+    /// The noise inflation of the last variance stage before the MCMC stage.
+    Noise,
+}
+
+impl Serialize for Temperature {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Temperature::Value(t) => s.serialize_f64(*t),
+            Temperature::Noise => s.serialize_str("noise"),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Temperature {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl serde::de::Visitor<'_> for V {
+            type Value = Temperature;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number ≥ 1 or \"noise\" (the last variance stage's noise inflation)")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Temperature, E> {
+                Ok(Temperature::Value(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Temperature, E> {
+                Ok(Temperature::Value(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Temperature, E> {
+                Ok(Temperature::Value(v as f64))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Temperature, E> {
+                match v {
+                    "noise" => Ok(Temperature::Noise),
+                    other => Err(E::invalid_value(serde::de::Unexpected::Str(other), &self)),
+                }
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl StageSpec {
@@ -249,6 +300,7 @@ impl StageSpec {
             walkers: None,
             burn_in: None,
             spread: None,
+            temperature: None,
         }
     }
 
@@ -275,6 +327,7 @@ impl StageSpec {
         push("walkers", self.walkers.is_some());
         push("burn_in", self.burn_in.is_some());
         push("spread", self.spread.is_some());
+        push("temperature", self.temperature.is_some());
         v
     }
 
@@ -306,6 +359,15 @@ impl StageSpec {
             {
                 return Err(SpecError::OutOfRange { field: field(name), value, need: "must be in [0, 1)" });
             }
+        }
+        if let Some(Temperature::Value(value)) = self.temperature
+            && !(value.is_finite() && value >= 1.0)
+        {
+            return Err(SpecError::OutOfRange {
+                field: field("temperature"),
+                value,
+                need: "must be a finite number ≥ 1 (or \"noise\")",
+            });
         }
         if self.keep == Some(0) {
             return Err(SpecError::Invalid { field: field("keep"), need: "must be at least 1" });
@@ -960,6 +1022,30 @@ population = 8
         )
         .unwrap();
         assert_eq!(c.stages[0].stall_generations, Some(20));
+    }
+
+    #[test]
+    fn an_mcmc_temperature_is_a_number_of_at_least_one_or_noise() {
+        let mcmc = |t: &str| {
+            GOOD.replace(
+                "algorithm = \"cmaes\"\nbudget = 50\npopulation = 8",
+                &format!("algorithm = \"mcmc\"\nbudget = 400\n{t}"),
+            )
+        };
+        let c = CalibrationSpec::from_toml(&mcmc("temperature = \"noise\""), "c.toml").unwrap();
+        assert_eq!(c.stages[0].temperature, Some(Temperature::Noise));
+        let c = CalibrationSpec::from_toml(&mcmc("temperature = 40"), "c.toml").unwrap();
+        assert_eq!(c.stages[0].temperature, Some(Temperature::Value(40.0)));
+        let json = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<CalibrationSpec>(&json).unwrap(), c);
+        let e = CalibrationSpec::from_toml(&mcmc("temperature = 0.5"), "c.toml").unwrap_err().to_string();
+        assert!(e.contains("stages[0].temperature") && e.contains("≥ 1"), "{e}");
+        let e = CalibrationSpec::from_toml(&mcmc("temperature = \"hot\""), "c.toml").unwrap_err().to_string();
+        assert!(e.contains("\"noise\"") && e.contains("hot"), "{e}");
+        let e = CalibrationSpec::from_toml(&GOOD.replace("population = 8", "temperature = 2.0"), "c.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("stages[0].temperature: does not apply to algorithm \"cmaes\""), "{e}");
     }
 
     const APPARATUS: &str = r#"

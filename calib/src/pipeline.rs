@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::api::{Best, Evaluation, Optimizer, Outcome, StopReason, TellError};
-use crate::config::{AlgorithmName, SpecError, StageSpec};
+use crate::config::{AlgorithmName, SpecError, StageSpec, Temperature};
 use crate::inference::{
     self, EnsembleSampler, InferenceAlgorithm, InferenceSummary, McmcOptions, Morris, MorrisOptions, NelderMead,
     NelderMeadOptions, Sensitivity, SensitivityOptions, Variance, VarianceOptions,
@@ -64,6 +64,15 @@ pub enum PipelineError {
     /// The free parameters do not make a space.
     #[error(transparent)]
     Space(#[from] SpaceError),
+    /// MCMC stage `index` asks for the noise temperature without a variance stage before it.
+    #[error(
+        "stages[{index}].temperature = \"noise\" takes the cost's jitter from a variance stage before the \
+         MCMC stage, and there is none: put a variance stage before it or give the temperature as a number ≥ 1"
+    )]
+    NoiseWithoutVariance {
+        /// The MCMC stage's index.
+        index: usize,
+    },
     /// Stage `index` cannot be built.
     #[error("stages[{index}]: {error}")]
     Stage {
@@ -99,11 +108,14 @@ impl StageAlgorithm {
 }
 
 /// Builds the algorithm of `spec` on `space` (the stage's free parameters), starting at `start`.
+/// `noise_temperature` is what an MCMC stage's `temperature = "noise"` stands for (the last
+/// variance stage's noise inflation; 1 when none was measured).
 pub fn build_stage(
     spec: &StageSpec,
     space: &Space,
     start: Option<&[f64]>,
     seed: u64,
+    noise_temperature: f64,
 ) -> Result<StageAlgorithm, StageError> {
     let d = space.dim();
     let b = spec.budget;
@@ -154,6 +166,11 @@ pub fn build_stage(
             o.walkers = spec.walkers.or(o.walkers);
             o.burn_in = spec.burn_in.unwrap_or(o.burn_in);
             o.initial_spread = spec.spread.unwrap_or(o.initial_spread);
+            o.temperature = match spec.temperature {
+                Some(Temperature::Value(t)) => t,
+                Some(Temperature::Noise) => noise_temperature,
+                None => o.temperature,
+            };
             inf(EnsembleSampler::new(space, start, o, b, seed).map(|m| InferenceAlgorithm::Mcmc(Box::new(m))))
         }
         AlgorithmName::DirectSearch => {
@@ -310,8 +327,13 @@ impl Pipeline {
         let mut dim = space.dim();
         for (k, s) in stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
+            if s.temperature == Some(Temperature::Noise)
+                && !stages[..k].iter().any(|p| p.algorithm == AlgorithmName::Variance)
+            {
+                return Err(PipelineError::NoiseWithoutVariance { index: k });
+            }
             let sub = Space::new(space.params()[..dim].to_vec())?;
-            build_stage(s, &sub, Some(&start[..dim]), stage_seed(seed, k))
+            build_stage(s, &sub, Some(&start[..dim]), stage_seed(seed, k), 1.0)
                 .map_err(|error| PipelineError::Stage { index: k, error })?;
             if matches!(s.algorithm, AlgorithmName::Sensitivity | AlgorithmName::Morris) {
                 dim = dim.min(s.keep.unwrap_or(SensitivityOptions::default().max_free));
@@ -389,13 +411,26 @@ impl Pipeline {
         self.error.is_some() || (self.running.is_none() && self.next_stage >= self.stages.len())
     }
 
+    /// The noise inflation `1 + 2σ_ε` the last finished variance stage measured (1 when it
+    /// measured no noise, or there was none): an MCMC stage's `temperature = "noise"`.
+    pub fn noise_temperature(&self) -> f64 {
+        self.reports
+            .iter()
+            .rev()
+            .find_map(|r| match &r.details {
+                Some(InferenceSummary::Variance(v)) => Some(v.gaussian.as_ref().map_or(1.0, |g| g.noise_inflation)),
+                _ => None,
+            })
+            .unwrap_or(1.0)
+    }
+
     fn start_stage(&mut self) -> Result<(), StageError> {
         let k = self.next_stage;
         let spec = &self.stages[k];
         let params: Vec<_> = self.active.iter().map(|&i| self.space.params()[i].clone()).collect();
         let sub = Space::new(params)?;
         let start: Vec<f64> = self.active.iter().map(|&i| self.anchor[i]).collect();
-        let algorithm = build_stage(spec, &sub, Some(&start), stage_seed(self.seed, k))?;
+        let algorithm = build_stage(spec, &sub, Some(&start), stage_seed(self.seed, k), self.noise_temperature())?;
         self.running = Some(Running {
             index: k,
             active: self.active.clone(),

@@ -474,6 +474,38 @@ mod mcmc {
         recovers(&[0.3, 0.5, 0.6, 0.45, 0.55], &cov, 250_000, 0.12, 0.05, 0.08);
     }
 
+    /// At temperature `T` the sampler draws from `exp(−S/(2T))`: for a quadratic `S` with
+    /// covariance `Σ` that is the Gaussian of covariance `T Σ`.
+    #[test]
+    fn a_temperature_widens_the_posterior_by_its_square_root() {
+        let cov = covariance(&[0.01, 0.015], &[&[1.0, -0.6], &[-0.6, 1.0]]);
+        let m = [0.45, 0.5];
+        let s = quadratic(&cov.clone().try_inverse().unwrap(), &m, 0.0);
+        let t = 9.0;
+        let options = McmcOptions { temperature: t, ..McmcOptions::default() };
+        let mut e = EnsembleSampler::new(&unit_space(2), Some(&[0.46, 0.51]), options, 60_000, 5).unwrap();
+        minimize(&mut e, 64, |u| ok(s(u)));
+        let r = e.summary();
+        assert_eq!(r.temperature, t);
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        for i in 0..2 {
+            let sd = (t * cov[(i, i)]).sqrt();
+            let p = &r.parameters[i];
+            assert!((p.sd_unit / sd - 1.0).abs() < 0.08, "sd {i}: {} vs {sd}", p.sd_unit);
+            assert!((p.mean_unit - m[i]).abs() < 0.15 * sd, "mean {i}: {} vs {}", p.mean_unit, m[i]);
+        }
+        assert!((r.correlation[0][1] + 0.6).abs() < 0.05, "{}", r.correlation[0][1]);
+        let e = EnsembleSampler::new(
+            &unit_space(2),
+            None,
+            McmcOptions { temperature: 0.5, ..McmcOptions::default() },
+            1000,
+            0,
+        )
+        .unwrap_err();
+        assert!(matches!(e, InferenceError::InvalidOption { option: "temperature", .. }), "{e}");
+    }
+
     #[test]
     fn failed_evaluations_have_zero_likelihood() {
         let space = unit_space(2);

@@ -155,3 +155,81 @@ fn persisted_mid_run_and_resumed_bit_identically() {
     assert!(asks > 10);
     assert_eq!(reference.best().unwrap().cost.to_bits(), p.best().unwrap().cost.to_bits());
 }
+
+/// S of [`cost`] on a and c plus a deterministic jitter of standard deviation `noise` (a hash of
+/// the point's bits), as a simulated cost jitters between nearby parameter sets.
+fn jittered(params: &BTreeMap<String, f64>, noise: f64) -> Outcome {
+    let (a, c) = (params["a"], params["c"]);
+    let mut h = a.to_bits() ^ c.to_bits().rotate_left(29) ^ 0x9E37_79B9_7F4A_7C15;
+    for _ in 0..3 {
+        h ^= h >> 31;
+        h = h.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    }
+    let u = (h >> 11) as f64 / (1u64 << 53) as f64;
+    let s = ((a - 1.3) / 0.05).powi(2) + ((c + 0.2) / 0.01).powi(2);
+    Outcome::Ok { cost: 100.0 + s + noise * 12f64.sqrt() * (u - 0.5) }
+}
+
+/// An MCMC stage at `temperature = "noise"` samples the likelihood tempered by the variance
+/// stage's noise inflation: on a cost that jitters, its walkers keep moving and its spread is
+/// the one the variance stage reports, where the plain likelihood leaves them stuck on lucky
+/// points of the jitter.
+#[test]
+fn an_mcmc_stage_at_the_noise_temperature_samples_the_variance_stage_spread() {
+    use cryofit_calib::config::Temperature;
+    let p =
+        |name: &str, lower: f64, upper: f64| FreeParameter { name: name.into(), lower, upper, scale: Scale::Linear };
+    let run = |temperature: Temperature| {
+        let s = Space::new(vec![p("a", 0.0, 4.0), p("c", -1.0, 1.0)]).unwrap();
+        let start = s.to_unit(&[1.5, 0.0]);
+        let mut mcmc = StageSpec::new(AlgorithmName::Mcmc, 16 * 500);
+        mcmc.walkers = Some(16);
+        mcmc.spread = Some(0.02);
+        mcmc.temperature = Some(temperature);
+        let mut variance = StageSpec::new(AlgorithmName::Variance, 60);
+        variance.step = Some(0.05);
+        let stages = vec![StageSpec::new(AlgorithmName::Cmaes, 400), variance, mcmc];
+        let mut pipe = Pipeline::new(s, stages, start, 9).unwrap();
+        while !pipe.is_finished() {
+            let jobs = pipe.ask(64);
+            let results: Vec<Evaluation> =
+                jobs.iter().map(|j| Evaluation { id: j.id, outcome: jittered(&j.parameters, 5.0) }).collect();
+            pipe.tell(&results).unwrap();
+        }
+        pipe
+    };
+    let pipe = run(Temperature::Noise);
+    let reports = pipe.reports();
+    let Some(InferenceSummary::Variance(v)) = &reports[1].details else { panic!("no variance summary") };
+    let g = v.gaussian.as_ref().unwrap();
+    let noise = g.cost_noise.unwrap();
+    println!("jitter {noise}, variance sd {:?}, positive definite {}", g.sd_physical, g.positive_definite);
+    assert!(noise > 2.5 && noise < 10.0, "measured jitter {noise} (5 put in)");
+    let Some(InferenceSummary::Mcmc(m)) = &reports[2].details else { panic!("no MCMC summary") };
+    assert_eq!(m.temperature, g.noise_inflation);
+    assert_eq!(pipe.noise_temperature(), g.noise_inflation);
+    assert!(m.acceptance_fraction.unwrap() > 0.2, "acceptance {:?}", m.acceptance_fraction);
+    for i in 0..2 {
+        let ratio = m.parameters[i].sd / g.sd_physical[i];
+        assert!(
+            ratio > 0.6 && ratio < 1.5,
+            "parameter {i}: MCMC sd {} vs variance sd {}",
+            m.parameters[i].sd,
+            g.sd_physical[i]
+        );
+    }
+    // the plain likelihood on the same jitter: the walkers stick
+    let plain = run(Temperature::Value(1.0));
+    let Some(InferenceSummary::Mcmc(m1)) = &plain.reports()[2].details else { panic!("no MCMC summary") };
+    assert_eq!(m1.temperature, 1.0);
+    assert!(m1.acceptance_fraction.unwrap() < 0.5 * m.acceptance_fraction.unwrap(), "{:?}", m1.acceptance_fraction);
+}
+
+#[test]
+fn the_noise_temperature_needs_a_variance_stage_before_it() {
+    let mut mcmc = StageSpec::new(AlgorithmName::Mcmc, 400);
+    mcmc.temperature = Some(cryofit_calib::config::Temperature::Noise);
+    let e = Pipeline::new(space(), vec![StageSpec::new(AlgorithmName::Cmaes, 100), mcmc], vec![0.5; 5], 1).unwrap_err();
+    assert!(matches!(e, cryofit_calib::pipeline::PipelineError::NoiseWithoutVariance { index: 1 }), "{e:?}");
+    assert!(e.to_string().starts_with("stages[1].temperature = \"noise\""), "{e}");
+}

@@ -660,16 +660,53 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
     Ok(text)
 }
 
-/// A warning for the ± of a Gaussian approximation whose Hessian was not positive definite:
-/// along the regularised directions its covariance is a placeholder, not an estimate. `unc` is
-/// what [`uncertainty`] chose; the warning concerns that stage only (an MCMC stage's ± after a
-/// variance stage need none).
+/// What the ± above rest on, where it needs saying: for a Gaussian approximation whose Hessian
+/// was not positive definite, that along the regularised directions its covariance is a
+/// placeholder, not an estimate; for an MCMC stage, the chain behind its quantiles (its size,
+/// its temperature, whether it converged). `unc` is what [`uncertainty`] chose; the note concerns
+/// that stage only (an MCMC stage's ± after a variance stage need no Hessian caveat).
 fn uncertainty_caveat(reports: &[StageReport], unc: &serde_json::Value) -> Option<String> {
-    if unc["method"] != "variance" {
-        return None;
-    }
     let stage = unc["stage"].as_u64()?;
     let r = reports.iter().find(|r| r.index as u64 == stage)?;
+    if let Some(InferenceSummary::Mcmc(m)) = &r.details {
+        let tempered = if m.temperature > 1.0 {
+            format!(
+                "; likelihood tempered at T = {} for the cost's jitter between nearby parameter sets",
+                fmt_sig(m.temperature)
+            )
+        } else {
+            String::new()
+        };
+        let short = m.parameters.iter().filter(|p| !p.autocorr_reliable).count();
+        let disagree = m.max_r_hat.filter(|&r| r > 1.05);
+        let convergence = if short == 0 && disagree.is_none() {
+            "the chain is longer than 50 autocorrelation times and its walkers agree".to_string()
+        } else {
+            let mut why = Vec::new();
+            if let Some(r) = disagree {
+                why.push(format!("max split R-hat {r:.2} > 1.05"));
+            }
+            if short > 0 {
+                why.push(format!(
+                    "kept chain not longer than 50 autocorrelation times for {short} of {} parameters",
+                    m.parameters.len()
+                ));
+            }
+            format!(
+                "the chain has not converged ({}): read the intervals as a first look and raise the stage's \
+                 budget for estimates",
+                why.join(", ")
+            )
+        };
+        return Some(format!(
+            "± and 95 % from the MCMC stage's {} samples ({} walkers × {} iterations after {} of burn-in{tempered}); \
+             {convergence}",
+            m.samples,
+            m.walkers,
+            m.iterations - m.burn_in,
+            m.burn_in
+        ));
+    }
     let Some(InferenceSummary::Variance(v)) = &r.details else { return None };
     let g = v.gaussian.as_ref().filter(|g| !g.positive_definite)?;
     Some(format!(
@@ -713,7 +750,9 @@ fn uncertainty(reports: &[StageReport]) -> serde_json::Value {
                     })
                     .collect();
                 return json!({"method": "mcmc", "stage": r.index, "parameters": params,
-                              "names": r.free, "covariance": m.covariance_physical, "correlation": m.correlation});
+                              "names": r.free, "covariance": m.covariance_physical, "correlation": m.correlation,
+                              "temperature": m.temperature, "samples": m.samples, "max_r_hat": m.max_r_hat,
+                              "acceptance_fraction": m.acceptance_fraction});
             }
             Some(InferenceSummary::Variance(v)) => {
                 let Some(g) = &v.gaussian else { continue };
@@ -960,6 +999,42 @@ mod tests {
         assert!(caveat.contains("not positive definite (1 of 1 directions regularised)"), "{caveat}");
         assert_eq!(caveat_of(&[gaussian(true)]), None);
         assert_eq!(caveat_of(&[variance_stage(&[], true)]), None);
+    }
+
+    /// The reports of a one-parameter MCMC stage of `budget` evaluations at `temperature` on
+    /// the cost `((x − 0.5)/0.05)²`.
+    fn mcmc_reports(budget: usize, temperature: f64) -> Vec<StageReport> {
+        use cryofit_calib::config::Temperature;
+        use cryofit_calib::{Evaluation, FreeParameter, Outcome, Scale};
+        let space =
+            Space::new(vec![FreeParameter { name: "a".into(), lower: 0.0, upper: 1.0, scale: Scale::Linear }]).unwrap();
+        let mut stage = StageSpec::new(AlgorithmName::Mcmc, budget);
+        stage.temperature = Some(Temperature::Value(temperature));
+        let mut p = Pipeline::new(space, vec![stage], vec![0.5], 3).unwrap();
+        while !p.is_finished() {
+            let told: Vec<Evaluation> = p
+                .ask(64)
+                .iter()
+                .map(|j| Evaluation {
+                    id: j.id,
+                    outcome: Outcome::Ok { cost: ((j.parameters["a"] - 0.5) / 0.05).powi(2) },
+                })
+                .collect();
+            p.tell(&told).unwrap();
+        }
+        p.reports().to_vec()
+    }
+
+    #[test]
+    fn an_mcmc_stage_says_what_its_intervals_rest_on() {
+        let caveat_of = |reports: &[StageReport]| uncertainty_caveat(reports, &uncertainty(reports)).unwrap();
+        let short = caveat_of(&mcmc_reports(16 * 12, 40.0));
+        assert!(short.contains("16 walkers × 6 iterations after 5 of burn-in"), "{short}");
+        assert!(short.contains("tempered at T = 40"), "{short}");
+        assert!(short.contains("has not converged") && short.contains("raise the stage's budget"), "{short}");
+        let long = caveat_of(&mcmc_reports(16 * 6000, 1.0));
+        assert!(!long.contains("tempered"), "{long}");
+        assert!(long.contains("longer than 50 autocorrelation times and its walkers agree"), "{long}");
     }
 
     #[test]

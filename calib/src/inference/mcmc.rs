@@ -4,7 +4,8 @@
 //! moved using the other, so one half's proposals are independent and form one generation.
 //!
 //! The posterior is the paper's Bayes rule for the parameters (section "Probabilistic framework",
-//! eq. "bayes_param") with likelihood `exp(−S/2)` and a uniform prior on the unit box. Uniform in
+//! eq. "bayes_param") with likelihood `exp(−S/2)` and a uniform prior on the unit box, or, at a
+//! temperature `T` above 1, the tempered likelihood `exp(−S/(2T))` (see [`McmcOptions::temperature`]). Uniform in
 //! unit coordinates means **uniform in the physical value for a linear parameter and log-uniform
 //! (uniform in ln x) for a logarithmic one**. A failed evaluation has zero likelihood: the proposal
 //! is rejected. Proposals outside the box have zero prior and are rejected without evaluation.
@@ -38,11 +39,22 @@ pub struct McmcOptions {
     pub burn_in: f64,
     /// Window constant `c` of Sokal's automatic windowing for the autocorrelation time. Default 5.
     pub autocorr_window: f64,
+    /// Temperature `T ≥ 1` of the likelihood `exp(−S/(2T))`. Default 1 (the plain likelihood).
+    ///
+    /// Decision: a simulated cost jitters by σ_ε between nearby parameter sets (adaptive time
+    /// stepping and the two-phase flow's sensitivity to small perturbations; the variance
+    /// stage measures σ_ε). Under the plain likelihood a point whose cost happens to lie 2σ_ε
+    /// below its neighbours' — hundreds of cost units on the NBS runs — is `e^{σ_ε}` times as
+    /// likely, and the walkers stick to such points: the chain samples the jitter, not the
+    /// posterior. At `T = 1 + 2σ_ε`, the variance stage's noise inflation, a jitter of σ_ε
+    /// changes the log-likelihood by less than ½ and the sampled spread is the one that stage
+    /// reports: the smooth part of the cost must rise by about `2σ_ε` before a move is unlikely.
+    pub temperature: f64,
 }
 
 impl Default for McmcOptions {
     fn default() -> Self {
-        Self { walkers: None, stretch: 2.0, initial_spread: 0.01, burn_in: 0.5, autocorr_window: 5.0 }
+        Self { walkers: None, stretch: 2.0, initial_spread: 0.01, burn_in: 0.5, autocorr_window: 5.0, temperature: 1.0 }
     }
 }
 
@@ -100,6 +112,9 @@ pub struct ParameterPosterior {
 pub struct McmcSummary {
     /// Walkers.
     pub walkers: usize,
+    /// Temperature of the likelihood, `exp(−S/(2T))` ([`McmcOptions::temperature`]).
+    #[cfg_attr(feature = "serde", serde(default = "unit_temperature"))]
+    pub temperature: f64,
     /// Completed iterations (both halves moved).
     pub iterations: usize,
     /// Iterations discarded as burn-in.
@@ -132,6 +147,12 @@ pub struct McmcSummary {
     pub warnings: Vec<String>,
     /// Why it stopped, once finished.
     pub stop: Option<StopReason>,
+}
+
+/// The temperature of a summary stored before temperatures existed: the plain likelihood.
+#[cfg(feature = "serde")]
+fn unit_temperature() -> f64 {
+    1.0
 }
 
 /// Posterior draws, for posterior-predictive runs (paper, eq. "bayes_forecast").
@@ -168,7 +189,8 @@ enum Phase {
 }
 
 /// Affine-invariant ensemble sampler (Goodman and Weare 2010 stretch move, parallel half-ensemble
-/// updates as in emcee, Foreman-Mackey et al. 2013) of `p(u) ∝ exp(−S(u)/2)` on the unit box.
+/// updates as in emcee, Foreman-Mackey et al. 2013) of `p(u) ∝ exp(−S(u)/(2T))` on the unit box
+/// (`T` = [`McmcOptions::temperature`], 1 unless the cost's jitter calls for more).
 ///
 /// Budget = evaluations: the initial ensemble, then one generation per half-ensemble move (the
 /// in-box proposals of that half). The sampler stops with [`StopReason::Budget`] when the next
@@ -244,6 +266,7 @@ impl EnsembleSampler {
             o.autocorr_window >= 1.0 && o.autocorr_window.is_finite(),
             "≥ 1",
         )?;
+        check(n, "temperature", o.temperature, o.temperature >= 1.0 && o.temperature.is_finite(), "finite and ≥ 1")?;
         if budget < 2 * walkers {
             return Err(InferenceError::BudgetTooSmall {
                 algorithm: n,
@@ -314,7 +337,7 @@ impl EnsembleSampler {
                 continue;
             }
             let old = self.costs[p.walker];
-            let log_q = p.log_z_term - 0.5 * new + 0.5 * old;
+            let log_q = p.log_z_term - 0.5 * (new - old) / self.options.temperature;
             if !old.is_finite() || p.uniform.ln() < log_q {
                 self.positions[p.walker] = p.point.clone();
                 self.costs[p.walker] = new;
@@ -444,6 +467,7 @@ impl EnsembleSampler {
         let kept = self.iterations - burn_in;
         let mut s = McmcSummary {
             walkers: w,
+            temperature: self.options.temperature,
             iterations: self.iterations,
             burn_in,
             samples: kept * w,
