@@ -399,8 +399,20 @@ struct Work {
     sg_used: Vec<f64>,
     /// See `gamma_used`.
     sl_used: Vec<f64>,
-    /// Per cell: whether a phase's temperature was reset (`state_recovery`).
+    /// Per cell: whether a phase's temperature was reset or a phase changed at its table's
+    /// edge (`state_recovery`).
     reset: Vec<bool>,
+    /// Per cell: the part of the new volume error that the cell's resets and edge phase
+    /// changes made (`state_recovery`; see [`acceptance::volume_error_check`]).
+    reset_volume: Vec<f64>,
+    /// Per cell: the fraction of the old volume error the pressure solve corrects
+    /// (`pressure_equation`).
+    corrected: Vec<f64>,
+    /// The start time of the last step rejected for its volume error
+    /// ([`acceptance::volume_error_check`]).
+    volume_retry_time: f64,
+    /// Per cell: the volume error that rejected step made there (0 where within its limit).
+    volume_retry: Vec<f64>,
     /// Per cell: whether a whole phase went over to the other at its table's edge
     /// (`state_recovery`; exempt from the step's change control, [`Scheme::change_control`]).
     merged: Vec<bool>,
@@ -487,11 +499,14 @@ fn resize(w: &mut Work, n: usize) {
         &mut w.gamma_used,
         &mut w.sg_used,
         &mut w.sl_used,
+        &mut w.reset_volume,
+        &mut w.corrected,
     ] {
         v.resize(n, 0.0);
     }
     w.reset.resize(n, false);
     w.merged.resize(n, false);
+    w.volume_retry.resize(n, 0.0);
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);
     w.x.resize(n, Vector4::zeros());

@@ -76,6 +76,7 @@ impl Scheme<'_> {
         let implied = s.volume_error[i].abs() / kappa.max(1e-300);
         let limit = VOLUME_ERROR_PRESSURE_FRACTION * s.p[i].max(SCALE_PRESSURE_PA);
         let lambda = if implied > limit { limit / implied } else { 1.0 };
+        w.corrected[i] = lambda;
         r[0] = lambda * (s.m_g[i] - a * gp.rho);
         r[1] = lambda * (s.m_l[i] - b * lp.rho);
         r[2] = lambda * (s.e_g[i] - a * gp.rho * gp.u);

@@ -23,10 +23,13 @@ impl Scheme<'_> {
             self.recover_cell(st, w, next, budget, i)?;
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
-            let (merged, reset) = (w.merged[c], w.reset[c]);
+            let (merged, reset, reset_volume) = (w.merged[c], w.reset[c], w.reset_volume[c]);
             self.recover_cell(st, w, next, budget, c)?;
             w.merged[c] |= merged;
             w.reset[c] |= reset;
+            // the first recovery's edge change already moved its mass: the volume it made is
+            // still in the error
+            w.reset_volume[c] += reset_volume;
         }
         Ok(next.volume_error.iter().fold(0.0, |m: f64, e| m.max(e.abs())))
     }
@@ -93,8 +96,9 @@ impl Scheme<'_> {
         corrected
     }
 
-    /// Recovers cell `i` of `next` (see [`Scheme::state_recovery`]), noting in `w.reset`
-    /// whether a phase of it was reset; returns its volume error.
+    /// Recovers cell `i` of `next` (see [`Scheme::state_recovery`]), noting in `w.reset` whether
+    /// a phase of it was reset or changed phase at its table's edge and in `w.reset_volume` the
+    /// volume that made; returns its volume error.
     fn recover_cell(
         &self,
         st: &StepInput,
@@ -147,6 +151,7 @@ impl Scheme<'_> {
             blend_min: self.physics.cryo.blend_min,
             blend_max: self.physics.cryo.blend_max,
         };
+        let (mut moved_to_g, mut moved_to_l) = (0.0, 0.0);
         // each phase from its own energy; one whose energy lies beyond its table's edge towards
         // the other phase changes phase there (`Recovery::edge_phase_change`)
         let (mut tg, mut gp, mut eg, reset_g) =
@@ -158,8 +163,8 @@ impl Scheme<'_> {
                         next.e_l[i] += next.e_g[i];
                         next.m_g[i] = 0.0;
                         let (t, props, e, _) = cell.phase(Phase::Gas, 0.0, 0.0, tg_guess, tl_guess, 0.0, budget)?;
-                        // not a function of the step: exempt from the volume-error growth check
-                        // (as a reset) and from the change control
+                        // not a function of the step: exempt from the volume-error check
+                        // and from the change control (`w.merged`)
                         w.merged[i] = true;
                         (t, props, e, true)
                     }
@@ -167,6 +172,7 @@ impl Scheme<'_> {
                         next.m_g[i] -= mass;
                         next.m_l[i] += mass;
                         next.e_l[i] += energy;
+                        moved_to_l = mass;
                         (t, props, next.m_g[i] * props.u, true)
                     }
                 },
@@ -184,6 +190,7 @@ impl Scheme<'_> {
                     };
                     next.m_l[i] -= mass;
                     next.m_g[i] += mass;
+                    moved_to_g = mass;
                     // the gas with the vapour that joined it, from its temperature as recovered
                     (tg, gp, eg, _) = cell.phase(Phase::Gas, next.m_g[i], eg + energy, tg, tl_guess, 0.0, budget)?;
                     match change {
@@ -198,12 +205,24 @@ impl Scheme<'_> {
                 }
             };
         let (mg, ml) = (next.m_g[i], next.m_l[i]);
-        w.reset[i] = reset_g || reset_l;
         next.e_g[i] = eg;
         next.e_l[i] = el;
         let ag = mg / gp.rho;
         let al = ml / lp.rho;
         let verr = ag + al - 1.0;
+        // the volume a reset phase's new temperature gave it, and the volume the mass an edge
+        // change moved takes in the phase it joined: not the step's linearisation error
+        let provisional_g = s.alpha[i] + w.dvol_g[i];
+        let provisional_l = 1.0 - s.alpha[i] + w.dvol_l[i];
+        let mut reset_volume = moved_to_g / gp.rho + moved_to_l / lp.rho;
+        if reset_g {
+            reset_volume += ag - provisional_g;
+        }
+        if reset_l {
+            reset_volume += al - provisional_l;
+        }
+        w.reset_volume[i] = reset_volume;
+        w.reset[i] = reset_g || reset_l;
         next.alpha[i] = ag / (ag + al);
         next.t_g[i] = tg;
         next.t_l[i] = tl;
