@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use cryofit_calib::apparatus;
-use cryofit_calib::config::{CalibrationSpec, ExperimentRef, ParameterSpec};
+use cryofit_calib::config::{AlgorithmName, CalibrationSpec, ExperimentRef, ParameterSpec, Temperature};
 use cryofit_calib::data::Dataset;
 use cryofit_plots::{Figure, FitPanels, Plot, StationPanel};
 use serde_json::json;
@@ -71,6 +71,20 @@ pub struct CrossvalArgs {
 struct Joint {
     best: BTreeMap<String, f64>,
     free: Vec<String>,
+    /// The noise inflation the joint calibration's last variance stage measured (1 when it
+    /// measured none), if it had one: see [`fold_spec`] for its use.
+    noise_temperature: Option<f64>,
+}
+
+/// The noise inflation of the last variance stage in a `result.json`'s `stages` (1 when that stage
+/// had no Gaussian approximation), as the pipeline reads an MCMC stage's `temperature = "noise"`.
+fn noise_temperature_of(result: &serde_json::Value) -> Option<f64> {
+    result["stages"]
+        .as_array()?
+        .iter()
+        .rev()
+        .find(|s| s["algorithm"] == "variance")
+        .map(|s| s["details"]["variance"]["gaussian"]["noise_inflation"].as_f64().unwrap_or(1.0))
 }
 
 fn read_joint(dir: &Path) -> Result<Joint> {
@@ -82,7 +96,7 @@ fn read_joint(dir: &Path) -> Result<Joint> {
         .and_then(|s| s.last())
         .and_then(|s| serde_json::from_value(s["free"].clone()).ok())
         .ok_or_else(|| anyhow!("{}: `stages` holds no stage with its free parameters", path.display()))?;
-    Ok(Joint { best, free })
+    Ok(Joint { best, free, noise_temperature: noise_temperature_of(&result) })
 }
 
 /// A free parameter's name as the `[[parameters]]` entry it comes from and, for a per-experiment
@@ -145,13 +159,34 @@ fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &
             }
         }
     }
+    // `temperature = "noise"` on a refit's MCMC stage with no variance stage before it in the
+    // refit: the jitter the joint calibration's variance stage measured at the joint optimum, where
+    // the refit starts. Decision: the joint cost sums one run more than a refit's, so its jitter is
+    // if anything larger and the tempered refit posterior if anything wider — the conservative side
+    // for a coverage check; a refit that wants its own measurement puts a variance stage first.
+    let mut stages = cv.stages.clone();
+    for k in 0..stages.len() {
+        let measured_before = stages[..k].iter().any(|s| s.algorithm == AlgorithmName::Variance);
+        if stages[k].temperature != Some(Temperature::Noise) || measured_before {
+            continue;
+        }
+        let t = joint.and_then(|j| j.noise_temperature).ok_or_else(|| {
+            anyhow!(
+                "[[crossval.stages]] {}: temperature = \"noise\" needs a variance stage before it in [crossval], or \
+                 --from a joint calibration that ran a variance stage (its measured noise is used); add one, or give \
+                 the temperature as a number ≥ 1",
+                k + 1
+            )
+        })?;
+        stages[k].temperature = Some(Temperature::Value(t));
+    }
     let fold = CalibrationSpec {
         name: format!("{} without {left_name}", spec.name),
         description: None,
         experiments,
         parameters,
         fixed,
-        stages: cv.stages.clone(),
+        stages,
         crossval: None,
         ..spec.clone()
     };

@@ -48,10 +48,12 @@ budget = 8
 population = 4
 sigma = 0.05
 [[crossval.stages]]
-algorithm = "variance"
-budget = 14
-step = 0.06
-restarts = 1
+algorithm = "mcmc"
+budget = 12
+walkers = 4
+burn_in = 0.25
+spread = 0.02
+temperature = "noise"
 "#;
 
 #[test]
@@ -66,6 +68,7 @@ fn each_run_is_refitted_without_itself_and_predicted() {
     let best: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(joint.join("result.json")).unwrap()).unwrap();
     let best_gwsc = best["best_parameters"]["Gwsc"].as_f64().unwrap();
+    let joint_t = best["stages"][1]["details"]["variance"]["gaussian"]["noise_inflation"].as_f64().unwrap_or(1.0);
 
     let cv = dir.join("cv");
     let stdout = ok(&cryofit(&[
@@ -94,17 +97,17 @@ fn each_run_is_refitted_without_itself_and_predicted() {
         let refit = std::fs::read_to_string(cv.join(format!("without-{name}/calibration.toml"))).unwrap();
         assert!(refit.contains(&format!("{other}.toml")) && !refit.contains(&format!("{name}.toml")), "{refit}");
         assert!(refit.contains(&format!("start = {best_gwsc}")), "{refit}");
+        // the refit's MCMC stage is tempered by the jitter the joint's variance stage measured
+        assert!(refit.contains(&format!("temperature = {joint_t:?}")), "{joint_t} {refit}");
         // twin data, one parameter: the left-out run is predicted closely
         for (station, rms) in fold["rms_k"].as_object().unwrap() {
             assert!(rms.as_f64().unwrap() < 10.0, "{name} {station}: RMS {rms}");
         }
-        // a band with its coverage, or the reason there is none
+        // an MCMC posterior always gives a band, with its coverage
         let band = &fold["band"];
-        assert!(band["measurements"].as_u64().is_some_and(|n| n > 0) || band["none"].is_string(), "{band}");
-        if let Some(n) = band["measurements"].as_u64() {
-            let (c, p) = (band["covered"].as_u64().unwrap(), band["covered_by_parameter_band"].as_u64().unwrap());
-            assert!(p <= n && c <= n, "{band}");
-        }
+        let n = band["measurements"].as_u64().filter(|&n| n > 0).unwrap_or_else(|| panic!("{band}"));
+        let (c, p) = (band["covered"].as_u64().unwrap(), band["covered_by_parameter_band"].as_u64().unwrap());
+        assert!(p <= n && c <= n, "{band}");
         let figure = cv.join(format!("crossval-{name}.svg"));
         assert!(std::fs::read_to_string(&figure).unwrap().contains("predicted by the refit without it"));
     }
@@ -128,6 +131,12 @@ fn a_file_that_cannot_be_cross_validated_is_refused_with_the_reason() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no [crossval] table") && err.contains("[[crossval.stages]]"), "{err}");
+    // a refit tempered by "noise" measures it itself or takes the joint calibration's (--from)
+    std::fs::write(&file, JOINT).unwrap();
+    let out = cryofit(&["crossval", file.to_str().unwrap(), "--out", dir.join("cv").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("[[crossval.stages]] 2: temperature = \"noise\""), "{err}");
+    assert!(err.contains("--from"), "{err}");
     let one = without.replace("[[experiments]]\ncase = \"low.toml\"\ndata = \"low-data.csv\"\n", "");
     std::fs::write(&file, one).unwrap();
     let out = cryofit(&["crossval", file.to_str().unwrap()]);
