@@ -17,6 +17,9 @@
 //!   parameters from their starts. A per-experiment copy of a case field that belongs to the
 //!   left-out experiment is not refitted (nothing constrains it) and the prediction uses the
 //!   left-out case's own value: a new run's apparatus is not known in advance.
+//! - An MCMC refit stage tempered by `"noise"` with no variance stage before it in the refit takes
+//!   the noise inflation the joint calibration's last variance stage measured (`--from`), written
+//!   into the fold's calibration file as a number; the refit then needs no Hessian of its own.
 //! - The band is the posterior-predictive band of a measurement that `cryofit predict` writes
 //!   (`p05`–`p95`: the model at posterior draws plus an error of the refit's own residual σ per
 //!   station; see `predict`'s decision); its coverage counts the left-out measurements whose
