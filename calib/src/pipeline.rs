@@ -256,6 +256,22 @@ pub struct StageReport {
     pub posterior_draws: Option<Vec<Vec<f64>>>,
 }
 
+/// Whether stage `k` of `stages` asks for `temperature = "noise"` with no variance stage before it
+/// to measure the noise.
+pub fn noise_unmeasured(stages: &[StageSpec], k: usize) -> bool {
+    stages[k].temperature == Some(Temperature::Noise)
+        && !stages[..k].iter().any(|p| p.algorithm == AlgorithmName::Variance)
+}
+
+/// The noise inflation `1 + 2σ_ε` the last variance stage among `reports` measured (1 when it
+/// measured no noise), or `None` when none of them is a variance stage.
+pub fn measured_noise_temperature(reports: &[StageReport]) -> Option<f64> {
+    reports.iter().rev().find_map(|r| match &r.details {
+        Some(InferenceSummary::Variance(v)) => Some(v.gaussian.as_ref().map_or(1.0, |g| g.noise_inflation)),
+        _ => None,
+    })
+}
+
 /// Number of posterior draws an MCMC stage keeps for predictions.
 pub const POSTERIOR_DRAWS: usize = 1000;
 
@@ -327,9 +343,7 @@ impl Pipeline {
         let mut dim = space.dim();
         for (k, s) in stages.iter().enumerate() {
             s.validate(&format!("stages[{k}]"))?;
-            if s.temperature == Some(Temperature::Noise)
-                && !stages[..k].iter().any(|p| p.algorithm == AlgorithmName::Variance)
-            {
+            if noise_unmeasured(&stages, k) {
                 return Err(PipelineError::NoiseWithoutVariance { index: k });
             }
             let sub = Space::new(space.params()[..dim].to_vec())?;
@@ -414,14 +428,7 @@ impl Pipeline {
     /// The noise inflation `1 + 2σ_ε` the last finished variance stage measured (1 when it
     /// measured no noise, or there was none): an MCMC stage's `temperature = "noise"`.
     pub fn noise_temperature(&self) -> f64 {
-        self.reports
-            .iter()
-            .rev()
-            .find_map(|r| match &r.details {
-                Some(InferenceSummary::Variance(v)) => Some(v.gaussian.as_ref().map_or(1.0, |g| g.noise_inflation)),
-                _ => None,
-            })
-            .unwrap_or(1.0)
+        measured_noise_temperature(&self.reports).unwrap_or(1.0)
     }
 
     fn start_stage(&mut self) -> Result<(), StageError> {

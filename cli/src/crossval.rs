@@ -33,8 +33,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use cryofit_calib::apparatus;
-use cryofit_calib::config::{AlgorithmName, CalibrationSpec, ExperimentRef, ParameterSpec, Temperature};
+use cryofit_calib::config::{CalibrationSpec, ExperimentRef, ParameterSpec, Temperature};
 use cryofit_calib::data::Dataset;
+use cryofit_calib::pipeline::{self, StageReport};
 use cryofit_plots::{Figure, FitPanels, Plot, StationPanel};
 use serde_json::json;
 
@@ -79,27 +80,17 @@ struct Joint {
     noise_temperature: Option<f64>,
 }
 
-/// The noise inflation of the last variance stage in a `result.json`'s `stages` (1 when that stage
-/// had no Gaussian approximation), as the pipeline reads an MCMC stage's `temperature = "noise"`.
-fn noise_temperature_of(result: &serde_json::Value) -> Option<f64> {
-    result["stages"]
-        .as_array()?
-        .iter()
-        .rev()
-        .find(|s| s["algorithm"] == "variance")
-        .map(|s| s["details"]["variance"]["gaussian"]["noise_inflation"].as_f64().unwrap_or(1.0))
-}
-
 fn read_joint(dir: &Path) -> Result<Joint> {
     let (path, result) = read_result_json(dir, "--from")?;
     let best: BTreeMap<String, f64> = serde_json::from_value(result["best_parameters"].clone())
         .with_context(|| format!("{}: `best_parameters` is missing or not a table of numbers", path.display()))?;
-    let free: Vec<String> = result["stages"]
-        .as_array()
-        .and_then(|s| s.last())
-        .and_then(|s| serde_json::from_value(s["free"].clone()).ok())
+    let reports: Vec<StageReport> = serde_json::from_value(result["stages"].clone())
+        .with_context(|| format!("{}: `stages` is missing or not a list of stage reports", path.display()))?;
+    let free = reports
+        .last()
+        .map(|r| r.free.clone())
         .ok_or_else(|| anyhow!("{}: `stages` holds no stage with its free parameters", path.display()))?;
-    Ok(Joint { best, free, noise_temperature: noise_temperature_of(&result) })
+    Ok(Joint { best, free, noise_temperature: pipeline::measured_noise_temperature(&reports) })
 }
 
 /// A free parameter's name as the `[[parameters]]` entry it comes from and, for a per-experiment
@@ -169,8 +160,7 @@ fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &
     // for a coverage check; a refit that wants its own measurement puts a variance stage first.
     let mut stages = cv.stages.clone();
     for k in 0..stages.len() {
-        let measured_before = stages[..k].iter().any(|s| s.algorithm == AlgorithmName::Variance);
-        if stages[k].temperature != Some(Temperature::Noise) || measured_before {
+        if !pipeline::noise_unmeasured(&stages, k) {
             continue;
         }
         let t = joint.and_then(|j| j.noise_temperature).ok_or_else(|| {
