@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::data::{Dataset, SeriesKey};
+use crate::data::{Dataset, Series, SeriesKey};
 
 /// Weight η and noise σ of one quantity.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -193,6 +193,24 @@ pub fn fit(model: &Dataset, data: &Dataset, weights: &Weights) -> Result<Fit, Fi
     Ok(Fit { cost: total, series })
 }
 
+/// RMS of data − model with the model's clock scaled by `ratio`: the data at `t` against the model
+/// at `ratio · t` (held at the model's first or last value outside its time range). With `ratio`
+/// the model's chilldown time over the data's, this is the misfit left once the model's front
+/// arrives when the measured one did: the error of the prediction's shape, apart from its timing.
+/// `None` for an empty series or a ratio that is not a positive number.
+pub fn time_scaled_rms(model: &Series, data: &Series, ratio: f64) -> Option<f64> {
+    let (&first, &last) = (model.times.first()?, model.times.last()?);
+    if data.times.is_empty() || !(ratio.is_finite() && ratio > 0.0) {
+        return None;
+    }
+    let mut sq = 0.0;
+    for (&t, &y) in data.times.iter().zip(&data.values) {
+        let r = model.at((ratio * t).clamp(first, last))? - y;
+        sq += r * r;
+    }
+    Some((sq / data.times.len() as f64).sqrt())
+}
+
 /// Number of data points that enter the cost.
 pub fn counted_points(data: &Dataset, weights: &Weights) -> usize {
     data.series.iter().filter(|(k, _)| weights.get(&k.1).is_some()).map(|(_, s)| s.times.len()).sum()
@@ -201,7 +219,6 @@ pub fn counted_points(data: &Dataset, weights: &Weights) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::data::Series;
 
     fn ds(points: &[(f64, f64)]) -> Dataset {
         let mut d = Dataset::default();
@@ -245,5 +262,22 @@ mod tests {
         let e = fit(&model, &other, &Weights::default()).unwrap_err();
         assert!(matches!(&e, FitError::MissingSeries { station, .. } if station == "TS9"), "{e:?}");
         assert!(e.to_string().contains("station `TS9`"), "{e}");
+    }
+
+    #[test]
+    fn a_late_front_scaled_back_in_time_fits_exactly() {
+        // the model's front (a ramp from 300 to 100 K) starts at twice the data's time and lasts twice as long
+        let ramp = |t0: f64, width: f64| -> Series {
+            let times: Vec<f64> = (0..=400).map(|k| k as f64 * 0.5).collect();
+            let values = times.iter().map(|&t| (300.0 - 200.0 * (t - t0) / width).clamp(100.0, 300.0)).collect();
+            Series { x_m: 1.0, times, values }
+        };
+        let (model, data) = (ramp(100.0, 20.0), ramp(50.0, 10.0));
+        assert!(time_scaled_rms(&model, &data, 1.0).unwrap() > 50.0);
+        // data at t against the model at 2t: the same curve (up to the model's sampling)
+        assert!(time_scaled_rms(&model, &data, 2.0).unwrap() < 1e-9);
+        // (the data's last 100 s meet the model past its 200 s end: held at its last value)
+        assert_eq!(time_scaled_rms(&model, &data, 0.0), None);
+        assert_eq!(time_scaled_rms(&model, &data, f64::NAN), None);
     }
 }

@@ -23,6 +23,7 @@ use clap::Args;
 use cryofit_api as api;
 use cryofit_calib::Space;
 use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
+use cryofit_calib::cost;
 use cryofit_calib::inference::InferenceSummary;
 use cryofit_calib::pipeline::{Pipeline, StageReport};
 use cryofit_calib::problem::{Experiment, Problem, default_start, experiment_from_texts};
@@ -625,17 +626,27 @@ type FitRow<'a> = (&'a Experiment, cryofit_calib::cost::Fit, cryofit_solver::dri
 fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_points: usize) -> Result<String> {
     let mut fit = serde_json::Map::new();
     for (e, f, out) in fits {
+        let pairs = chilldown_pairs(&e.data, out);
+        let model = cryofit_calib::model::probes_dataset(&out.probes);
         let series: Vec<_> = f
             .series
             .iter()
-            .map(|((station, quantity), s)| {
-                json!({"station": station, "quantity": quantity, "rms": s.rms, "points": s.points, "cost": s.cost})
+            .map(|(key, s)| {
+                // the misfit once the model's clock is scaled to its station's measured chilldown
+                let time_scaled = match pairs.get(&key.0) {
+                    Some((Some(d), Some(m))) => model
+                        .series
+                        .get(key)
+                        .zip(e.data.series.get(key))
+                        .and_then(|(ms, ds)| cost::time_scaled_rms(ms, ds, m / d)),
+                    _ => None,
+                };
+                json!({"station": key.0, "quantity": key.1, "rms": s.rms, "points": s.points, "cost": s.cost,
+                       "time_scaled_rms": time_scaled})
             })
             .collect();
-        let chill: BTreeMap<String, serde_json::Value> = chilldown_pairs(&e.data, out)
-            .into_iter()
-            .map(|(st, (d, m))| (st, json!({"data_s": d, "model_s": m})))
-            .collect();
+        let chill: BTreeMap<String, serde_json::Value> =
+            pairs.into_iter().map(|(st, (d, m))| (st, json!({"data_s": d, "model_s": m}))).collect();
         fit.insert(e.name.clone(), json!({"cost": f.cost, "series": series, "chilldown_time_s": chill}));
     }
     let value = json!({

@@ -21,8 +21,8 @@
 //!   the noise inflation the joint calibration's last variance stage measured (`--from`), written
 //!   into the fold's calibration file as a number; the refit then needs no Hessian of its own.
 //! - The band is the posterior-predictive band of a measurement that `cryofit predict` writes
-//!   (`p05`–`p95`: the model at posterior draws plus an error of the refit's own residual σ per
-//!   station; see `predict`'s decision); its coverage counts the left-out measurements whose
+//!   (`p05`–`p95`: the model at posterior draws, its clock scaled by the refit's own chilldown-time
+//!   error, plus the misfit left once on time, per station; see `predict`'s decision); its coverage counts the left-out measurements whose
 //!   value lies between the band's 5 and 95 % at the measurement's time (linear between the
 //!   band's times). The coverage of the parameters' band alone (`q05`–`q95`) is reported beside
 //!   it: the share of the measurements that the parameters' uncertainty by itself explains.
@@ -424,7 +424,7 @@ fn predict_left_out(
             value_label: "wall temperature (K)".into(),
             value_scale: 1.0,
             band_label: format!(
-                "5–95 % posterior predictive of a measurement ({} runs ± the refit's residual σ)",
+                "5–95 % posterior predictive of a measurement ({} runs, the refit's clock and shape errors)",
                 args.samples
             ),
             panels,

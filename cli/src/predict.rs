@@ -12,16 +12,29 @@
 //! draws (the parameters' uncertainty alone), and `p05`–`p95`, the posterior-predictive band of a
 //! measurement, the paper's eq. "bayes_forecast" `P(d_n | d) = ∫ P(d_n | θ) P(θ | d) dθ`.
 //!
-//! Decision: `P(d_n | θ)` is the model at θ plus a Gaussian error whose σ is that of the
-//! calibration's own residuals: per station and quantity, the RMS of model − data at the best
-//! point pooled over the calibration's experiments (`result.json`, `fit`), which is the maximum-
-//! likelihood σ of a Gaussian error given the best point; a station the calibration did not fit
-//! takes the quantity's RMS pooled over all its stations. The weights' σ (the instruments' noise)
-//! would claim the model is as good as the thermocouples; a fit whose RMS is tens of kelvin
-//! predicts a new measurement no better than that, and a 90 % band that says otherwise covers far
-//! fewer than 90 % of new measurements. A quantity the calibration did not fit has no `p05`/`p95`
-//! (empty cells). The band of a row is the mixture of N(model at each draw, σ²), its 5 and 95 %
-//! points found by bisection.
+//! Decision: `P(d_n | θ)` is the model at θ with its clock in error, plus a Gaussian error, both
+//! measured on the calibration's own fit at its best point (`result.json`, `fit`):
+//! - the clock: a measurement at `t` is the model at `r·t`, `ln r ~ N(0, s²)`, with `s` the RMS of
+//!   ln(model chilldown time / measured chilldown time) over every station and experiment of the
+//!   calibration (the maximum-likelihood σ given the best point). The fitted model's error is
+//!   mostly one of timing — its front arrives early or late, the curves before and after it agree —
+//!   and an additive error of constant width cannot say so: it must be as wide as the front's
+//!   misplacement everywhere, so a band that covers the front is ±50 K on a line that has long
+//!   settled at 77 K and reaches below 0 K. Scaling the clock keeps every centre on the model's own
+//!   curve (a temperature stays a temperature the model reached) and puts the width where the front
+//!   is uncertain.
+//! - the Gaussian: per station and quantity, the RMS of model − data once the model's clock is
+//!   scaled to that station's measured chilldown (`time_scaled_rms`), pooled over the experiments
+//!   by points; a station the calibration did not fit takes the quantity's RMS pooled over all its
+//!   stations. This is the error of the curve's shape; the weights' σ (the instruments' noise)
+//!   would claim the model is as good as the thermocouples.
+//!
+//! A calibration whose fit has fewer than two chilldown pairs (or a `result.json` written before
+//! `time_scaled_rms`) has no clock error: the Gaussian is then the plain residual RMS, as wide as it
+//! must be. A quantity the calibration did not fit has no `p05`/`p95` (empty cells). The band of a
+//! row is the equal-weight mixture of N(model at each draw at each of 16 equal-probability clock
+//! factors, σ²), its 5 and 95 % points found by bisection; the clock factors are clamped to the
+//! run's time range (the model's first or last value).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -30,7 +43,9 @@ use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use cryofit_calib::apparatus;
 use cryofit_calib::config::CalibrationSpec;
+use cryofit_calib::data::Dataset;
 use cryofit_calib::draws::{gaussian_draws, space_draws};
+use cryofit_calib::model::probes_dataset;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver::{self, Output};
 use cryofit_solver::params::{self, ParameterSet};
@@ -190,26 +205,50 @@ fn read_draws(text: &str, file: &str) -> Result<(Vec<String>, Vec<Vec<f64>>)> {
     Ok((names, rows))
 }
 
-/// The σ of a measurement about the model (see the module's decision), from a calibration's
-/// `result.json`: per (station, quantity) and, for stations it did not fit, per quantity.
+/// The error of a measurement about the model (see the module's decision), from a calibration's
+/// `result.json`: the σ of its Gaussian part per (station, quantity) and, for stations the
+/// calibration did not fit, per quantity; and the σ of the log of the model's clock error, when
+/// the calibration's fit has chilldown times to measure it from.
 #[derive(Debug, Default, PartialEq)]
-struct ResidualSigma {
+struct ErrorModel {
     series: BTreeMap<(String, String), f64>,
     quantity: BTreeMap<String, f64>,
+    /// σ of ln(model chilldown / measured chilldown) over the calibration's stations and experiments.
+    timing: Option<f64>,
 }
 
-impl ResidualSigma {
-    /// Pools `fit.<experiment>.series[]` (`rms`, `points`) of `result` over the experiments.
+/// Equal-probability points of the clock error's distribution in the band's mixture.
+const TIMING_NODES: usize = 16;
+
+impl ErrorModel {
+    /// Pools `fit.<experiment>` of `result` over the experiments: `series[]` (`rms` or, with a
+    /// clock error, `time_scaled_rms`, by `points`) and `chilldown_time_s` (the clock error).
     fn from_result(result: &serde_json::Value) -> Self {
+        let fits: Vec<&serde_json::Value> = result["fit"].as_object().into_iter().flat_map(|m| m.values()).collect();
+        let log_ratios: Vec<f64> = fits
+            .iter()
+            .filter_map(|fit| fit["chilldown_time_s"].as_object())
+            .flat_map(|m| m.values())
+            .filter_map(|c| Some((c["model_s"].as_f64()? / c["data_s"].as_f64()?).ln()))
+            .filter(|r| r.is_finite())
+            .collect();
+        // a result.json from before `time_scaled_rms` has no shape error to go with a clock error
+        let scaled = fits
+            .iter()
+            .any(|fit| fit["series"].as_array().into_iter().flatten().any(|s| s.get("time_scaled_rms").is_some()));
+        let timing = (scaled && log_ratios.len() >= 2)
+            .then(|| (log_ratios.iter().map(|r| r * r).sum::<f64>() / log_ratios.len() as f64).sqrt());
         let mut series: BTreeMap<(String, String), (f64, f64)> = BTreeMap::new();
         let mut quantity: BTreeMap<String, (f64, f64)> = BTreeMap::new();
-        for fit in result["fit"].as_object().into_iter().flat_map(|m| m.values()) {
+        for fit in &fits {
             for s in fit["series"].as_array().into_iter().flatten() {
                 let (Some(station), Some(q), Some(rms), Some(n)) =
                     (s["station"].as_str(), s["quantity"].as_str(), s["rms"].as_f64(), s["points"].as_f64())
                 else {
                     continue;
                 };
+                // a series whose station has no chilldown pair keeps its clock: its plain RMS
+                let rms = if timing.is_some() { s["time_scaled_rms"].as_f64().unwrap_or(rms) } else { rms };
                 if !rms.is_finite() || n <= 0.0 {
                     continue;
                 }
@@ -226,6 +265,7 @@ impl ResidualSigma {
         Self {
             series: series.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
             quantity: quantity.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
+            timing,
         }
     }
 
@@ -235,6 +275,17 @@ impl ResidualSigma {
             .or_else(|| self.quantity.get(quantity))
             .copied()
             .filter(|s| *s > 0.0)
+    }
+
+    /// The factors the model's clock is scaled by in the band: `TIMING_NODES` equal-probability
+    /// points of exp(N(0, timing²)), or just 1 without a clock error.
+    fn clock_factors(&self) -> Vec<f64> {
+        match self.timing {
+            Some(s) if s > 0.0 => {
+                (0..TIMING_NODES).map(|j| (s * normal_quantile((j as f64 + 0.5) / TIMING_NODES as f64)).exp()).collect()
+            }
+            _ => vec![1.0],
+        }
     }
 }
 
@@ -252,6 +303,20 @@ fn normal_cdf(z: f64) -> f64 {
                             + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
     let erfc = t * poly.exp();
     if z >= 0.0 { 1.0 - 0.5 * erfc } else { 0.5 * erfc }
+}
+
+/// The standard normal's `p` quantile, by bisection of [`normal_cdf`] (to its own accuracy).
+fn normal_quantile(p: f64) -> f64 {
+    let (mut lo, mut hi) = (-10.0, 10.0);
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if normal_cdf(mid) < p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// The `q` quantile of the equal-weight mixture of N(c, σ²) over `centres`, by bisection (80
@@ -295,7 +360,7 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     let base = driver::case_parameters(&case).map_err(|e| anyhow!("{case_path}: {e}"))?;
     let (result_path, result) = read_result_json(&args.from, "--from")?;
     let (sets, method) = draws(&args.from, &result_path, &result, args.samples, args.seed)?;
-    let residual = ResidualSigma::from_result(&result);
+    let errors = ErrorModel::from_result(&result);
     let experiment = crate::param_values::experiment_of(&args.case, args.experiment.as_deref());
     if let Some(first) = sets.first() {
         crate::param_values::report_skipped(&apparatus::sort(first, Some(&experiment)).skipped, &experiment);
@@ -324,14 +389,23 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         bail!("internal error: runs recorded different numbers of probe values");
     }
     let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
+    let factors = errors.clock_factors();
+    let series: Vec<Dataset> = ok.iter().map(|o| probes_dataset(&o.probes)).collect();
     let mut values = Vec::with_capacity(ok.len());
+    let mut centres = Vec::with_capacity(ok.len() * factors.len());
     for k in 0..n_rows {
         let o = &ok[0].probes[k];
         values.clear();
         values.extend(ok.iter().map(|r| r.probes[k].value));
         values.sort_by(f64::total_cmp);
-        let (p05, p95) = residual.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
-            (fmt_num(mixture_quantile(&values, sigma, 0.05)), fmt_num(mixture_quantile(&values, sigma, 0.95)))
+        let (p05, p95) = errors.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
+            let key = (o.station.clone(), o.quantity.to_string());
+            centres.clear();
+            for s in series.iter().filter_map(|d| d.series.get(&key)) {
+                let (first, last) = (s.times[0], s.times[s.times.len() - 1]);
+                centres.extend(factors.iter().filter_map(|f| s.at((o.time_s * f).clamp(first, last))));
+            }
+            (fmt_num(mixture_quantile(&centres, sigma, 0.05)), fmt_num(mixture_quantile(&centres, sigma, 0.95)))
         });
         bands.row([
             &fmt_num(o.time_s),
@@ -372,11 +446,12 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         "failures": failures,
         "chilldown_time_s": chill,
         "residual_sigma": {
-            "series": residual.series.iter()
+            "series": errors.series.iter()
                 .map(|((st, q), v)| json!({"station": st, "quantity": q, "sigma": v}))
                 .collect::<Vec<_>>(),
-            "quantity": residual.quantity,
+            "quantity": errors.quantity,
         },
+        "timing_sigma_log": errors.timing,
     });
     let out_dir = args.out.clone().unwrap_or_else(|| {
         let stem = args.case.file_stem().map_or_else(|| "case".into(), |s| s.to_string_lossy().into_owned());
@@ -394,12 +469,19 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         }
     }
     let sigmas: Vec<String> =
-        stations.iter().filter_map(|st| Some(format!("{st} {:.1}", residual.get(st, "wall_temperature_k")?))).collect();
+        stations.iter().filter_map(|st| Some(format!("{st} {:.1}", errors.get(st, "wall_temperature_k")?))).collect();
     if !sigmas.is_empty() {
-        println!(
-            "  measurement band p05–p95: the model at the draws ± the calibration's residual σ (wall temperature, K: {})",
-            sigmas.join(", ")
-        );
+        match errors.timing {
+            Some(s) => println!(
+                "  measurement band p05–p95: the model at the draws, its clock scaled by the calibration's chilldown-time \
+                 error (σ of the log {s:.3}), ± the misfit left once on time (wall temperature, K: {})",
+                sigmas.join(", ")
+            ),
+            None => println!(
+                "  measurement band p05–p95: the model at the draws ± the calibration's residual σ (wall temperature, K: {})",
+                sigmas.join(", ")
+            ),
+        }
     }
     println!("  wrote bands.csv, prediction.json to {}", out_dir.display());
     Ok(())
@@ -436,7 +518,7 @@ mod tests {
                 {"station": "TS2", "quantity": "wall_temperature_k", "rms": 1.0, "points": 4}
             ]}
         }});
-        let r = ResidualSigma::from_result(&result);
+        let r = ErrorModel::from_result(&result);
         let ts1 = ((9.0 + 3.0 * 25.0) / 4.0f64).sqrt();
         assert!((r.get("TS1", "wall_temperature_k").unwrap() - ts1).abs() < 1e-12);
         assert_eq!(r.get("TS2", "wall_temperature_k"), Some(1.0));
@@ -444,5 +526,44 @@ mod tests {
         let all = ((9.0 + 75.0 + 4.0) / 8.0f64).sqrt();
         assert!((r.get("TS9", "wall_temperature_k").unwrap() - all).abs() < 1e-12);
         assert_eq!(r.get("TS1", "pressure_pa"), None);
+    }
+
+    #[test]
+    fn the_clock_error_comes_from_chilldown_pairs_and_the_shape_error_from_the_scaled_misfit() {
+        let result = json!({"fit": {
+            "a": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 40.0, "points": 2,
+                              "time_scaled_rms": 6.0}],
+                  "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 110.0}}},
+            "b": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 30.0, "points": 2,
+                              "time_scaled_rms": 8.0}],
+                  "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 90.0},
+                                       "TS2": {"data_s": 50.0, "model_s": null}}}
+        }});
+        let r = ErrorModel::from_result(&result);
+        let s = ((1.1f64.ln().powi(2) + 0.9f64.ln().powi(2)) / 2.0).sqrt();
+        assert!((r.timing.unwrap() - s).abs() < 1e-12, "{:?}", r.timing);
+        assert!((r.get("TS1", "wall_temperature_k").unwrap() - 50f64.sqrt()).abs() < 1e-12);
+        // the clock factors: 16 equal-probability points of a log-normal, symmetric in the log
+        let f = r.clock_factors();
+        assert_eq!(f.len(), TIMING_NODES);
+        assert!((f[0] * f[TIMING_NODES - 1] - 1.0).abs() < 1e-9);
+        assert!(f.windows(2).all(|w| w[0] < w[1]));
+        let mean_sq = f.iter().map(|x| x.ln().powi(2)).sum::<f64>() / f.len() as f64;
+        assert!((mean_sq.sqrt() / s - 1.0).abs() < 0.1, "{mean_sq}");
+        // without the scaled misfits (an older result.json), no clock error and the plain RMS
+        let old = json!({"fit": {"a": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 40.0,
+            "points": 2}], "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 110.0},
+            "TS2": {"data_s": 50.0, "model_s": 60.0}}}}});
+        let r = ErrorModel::from_result(&old);
+        assert_eq!((r.timing, r.clock_factors()), (None, vec![1.0]));
+        assert_eq!(r.get("TS1", "wall_temperature_k"), Some(40.0));
+    }
+
+    #[test]
+    fn the_normal_quantile_inverts_the_cdf() {
+        for p in [0.01, 0.05, 0.3, 0.5, 0.9, 0.999] {
+            assert!((normal_cdf(normal_quantile(p)) - p).abs() < 1e-9, "{p}");
+        }
+        assert!((normal_quantile(0.95) - 1.644_853_627).abs() < 1e-5);
     }
 }

@@ -144,26 +144,49 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     assert!(bands.starts_with("time_s,station,x_m,quantity,q05,q50,q95,p05,p95\n"));
     let p: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(pred.join("prediction.json")).unwrap()).unwrap();
-    // the measurement's band: the parameters' band widened by the calibration's residual σ at the
-    // station, which the calibration's own fit gives
+    // the measurement's error, from the calibration's own fit: the clock's from its chilldown
+    // pairs, the shape's from each series' misfit once on time (its plain RMS without a pair)
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
+    let logs: Vec<f64> = result["fit"]["case"]["chilldown_time_s"]
+        .as_object()
+        .unwrap()
+        .values()
+        .filter_map(|c| Some((c["model_s"].as_f64()? / c["data_s"].as_f64()?).ln()))
+        .collect();
+    match p["timing_sigma_log"].as_f64() {
+        Some(s) => {
+            assert!(logs.len() >= 2, "{logs:?}");
+            let rms = (logs.iter().map(|r| r * r).sum::<f64>() / logs.len() as f64).sqrt();
+            assert!((s - rms).abs() < 1e-12 * rms.max(1e-3), "{s} against {rms}");
+        }
+        None => assert!(logs.len() < 2, "{logs:?} but no clock error"),
+    }
     let fitted = result["fit"]["case"]["series"].as_array().unwrap();
     let sigmas = p["residual_sigma"]["series"].as_array().unwrap();
     assert_eq!(sigmas.len(), fitted.len(), "{sigmas:?}");
     for (s, f) in sigmas.iter().zip(fitted) {
         assert_eq!(s["station"], f["station"]);
-        assert!((s["sigma"].as_f64().unwrap() - f["rms"].as_f64().unwrap()).abs() < 1e-9 * f["rms"].as_f64().unwrap());
+        let own = if p["timing_sigma_log"].is_null() { &f["rms"] } else { &f["time_scaled_rms"] };
+        let own = own.as_f64().or(f["rms"].as_f64()).unwrap();
+        assert!((s["sigma"].as_f64().unwrap() - own).abs() < 1e-9 * own, "{s} against {f}");
     }
+    let mut at_start = 0;
     for line in bands.lines().skip(1).filter(|l| l.contains("wall_temperature_k")) {
         let v: Vec<f64> = line.split(',').skip(4).map(|x| x.parse().unwrap()).collect();
-        assert!(v[0] <= v[1] && v[1] <= v[2], "{line}");
+        assert!(v[0] <= v[1] && v[1] <= v[2] && v[3] < v[4], "{line}");
         let station = line.split(',').nth(1).unwrap();
         let sigma = sigmas.iter().find(|s| s["station"] == station).unwrap()["sigma"].as_f64().unwrap();
-        // half the draws lie on each side of the median, so the mixture's 5 % point lies at least
-        // Φ⁻¹(0.9) σ below it (and its 95 % point as far above)
-        assert!(v[3] <= v[1] - 1.2815 * sigma && v[4] >= v[1] + 1.2815 * sigma, "{line} σ {sigma}");
+        // at the start every draw, at every clock, is the line's initial temperature: the band
+        // is the Gaussian's alone, ±Φ⁻¹(0.95) σ
+        if line.starts_with("0,") {
+            assert_eq!(v[0], v[2], "{line}");
+            assert!((v[3] - (v[1] - 1.644_853_6 * sigma)).abs() < 1e-3 * sigma, "{line} σ {sigma}");
+            assert!((v[4] - (v[1] + 1.644_853_6 * sigma)).abs() < 1e-3 * sigma, "{line} σ {sigma}");
+            at_start += 1;
+        }
     }
+    assert!(at_start > 0, "no band row at t = 0");
     assert_eq!(p["samples"], 6);
     assert_eq!(p["method"], "Gaussian approximation of the variance stage");
     std::fs::remove_dir_all(&dir).ok();
