@@ -16,7 +16,10 @@
 //! measured on the calibration's own fit at its best point (`result.json`, `fit`):
 //! - the clock: a measurement at `t` is the model at `r·t`, `ln r ~ N(0, s²)`, with `s` the RMS of
 //!   ln(model chilldown time / measured chilldown time) over every station and experiment of the
-//!   calibration (the maximum-likelihood σ given the best point). The fitted model's error is
+//!   calibration (the maximum-likelihood σ given the best point; about zero, not about the mean
+//!   ratio, so a calibration that is late on every run widens the band rather than shifting it
+//!   off the model's curve: one bias estimated from a few runs is no correction to trust for
+//!   a run under other conditions). The fitted model's error is
 //!   mostly one of timing — its front arrives early or late, the curves before and after it agree —
 //!   and an additive error of constant width cannot say so: it must be as wide as the front's
 //!   misplacement everywhere, so a band that covers the front is ±50 K on a line that has long
@@ -305,18 +308,9 @@ fn normal_cdf(z: f64) -> f64 {
     if z >= 0.0 { 1.0 - 0.5 * erfc } else { 0.5 * erfc }
 }
 
-/// The standard normal's `p` quantile, by bisection of [`normal_cdf`] (to its own accuracy).
+/// The standard normal's `p` quantile: the mixture of one (to [`normal_cdf`]'s accuracy).
 fn normal_quantile(p: f64) -> f64 {
-    let (mut lo, mut hi) = (-10.0, 10.0);
-    for _ in 0..80 {
-        let mid = 0.5 * (lo + hi);
-        if normal_cdf(mid) < p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
+    mixture_quantile(&[0.0], 1.0, p)
 }
 
 /// The `q` quantile of the equal-weight mixture of N(c, σ²) over `centres`, by bisection (80
