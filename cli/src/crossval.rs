@@ -195,10 +195,10 @@ struct FoldResult {
     rms: BTreeMap<String, f64>,
     /// Station-4 (last station's) chilldown of data and prediction, s.
     chilldown: Option<(String, Option<f64>, Option<f64>)>,
-    /// Covered and total measurements, or why there is no band.
-    coverage: Result<(usize, usize), String>,
-    /// The measurements covered by the parameters' band alone (`q05`–`q95`).
-    parameter_covered: Option<usize>,
+    /// The measurement's band against the measurements, or why there is no band.
+    coverage: Result<Coverage, String>,
+    /// The parameters' band alone (`q05`–`q95`) against the measurements.
+    parameter_coverage: Option<Coverage>,
     refit_cost: Option<f64>,
 }
 
@@ -257,21 +257,47 @@ fn read_bands(path: &Path) -> Result<(Bands, Bands)> {
     Ok((predictive, parameters))
 }
 
-/// The measured wall temperatures inside the band: (covered, total).
-fn coverage(data: &Dataset, bands: &Bands) -> (usize, usize) {
-    let (mut covered, mut total) = (0, 0);
+/// How a band meets the measured wall temperatures: how many it covers, of how many within its
+/// times, and its width summed over them (its sharpness: a band as wide as the whole chilldown
+/// covers everything and predicts nothing).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Coverage {
+    covered: usize,
+    total: usize,
+    width_sum_k: f64,
+}
+
+impl Coverage {
+    /// Mean width of the band at the measurements, K.
+    fn mean_width_k(&self) -> Option<f64> {
+        (self.total > 0).then(|| self.width_sum_k / self.total as f64)
+    }
+
+    fn add(self, o: Coverage) -> Coverage {
+        Coverage {
+            covered: self.covered + o.covered,
+            total: self.total + o.total,
+            width_sum_k: self.width_sum_k + o.width_sum_k,
+        }
+    }
+}
+
+/// The measured wall temperatures inside the band.
+fn coverage(data: &Dataset, bands: &Bands) -> Coverage {
+    let mut c = Coverage::default();
     for ((station, quantity), s) in &data.series {
         let Some(band) = bands.get(station).filter(|_| quantity == "wall_temperature_k") else { continue };
         for (&t, &v) in s.times.iter().zip(&s.values) {
             if let Some((lo, hi)) = band_at(band, t) {
-                total += 1;
+                c.total += 1;
+                c.width_sum_k += hi - lo;
                 if (lo..=hi).contains(&v) {
-                    covered += 1;
+                    c.covered += 1;
                 }
             }
         }
     }
-    (covered, total)
+    c
 }
 
 /// Runs `cryofit crossval`.
@@ -382,7 +408,7 @@ fn predict_left_out(
         &std::fs::read_to_string(&data_path).with_context(|| format!("cannot read {data_label}"))?,
         &data_label,
     )?;
-    let parameter_covered = band.as_ref().ok().map(|(_, b)| coverage(&data, b).0);
+    let parameter_coverage = band.as_ref().ok().map(|(_, b)| coverage(&data, b));
     let coverage = match &band {
         Ok((b, _)) => Ok(coverage(&data, b)),
         Err(why) => Err(format!("{why:#}")),
@@ -412,7 +438,11 @@ fn predict_left_out(
         })
         .collect();
     let note = match &coverage {
-        Ok((c, t)) if *t > 0 => format!("band covers {:.0} % of the measurements", 100.0 * *c as f64 / *t as f64),
+        Ok(c) if c.total > 0 => format!(
+            "band covers {:.0} % of the measurements, {:.0} K wide on average",
+            100.0 * c.covered as f64 / c.total as f64,
+            c.mean_width_k().unwrap_or(f64::NAN)
+        ),
         Ok(_) => "the band and the measurements do not overlap in time".into(),
         Err(_) => "no band (crossval.json says why)".into(),
     };
@@ -435,7 +465,7 @@ fn predict_left_out(
         rms,
         chilldown,
         coverage,
-        parameter_covered,
+        parameter_coverage,
         refit_cost: refit["best_cost"].as_f64(),
     };
     Ok((result, figure))
@@ -451,7 +481,9 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
                 "left_out": r.experiment, "refit_cost": r.refit_cost, "rms_k": r.rms,
                 "chilldown": {"station": station, "data_s": data, "model_s": model, "relative_error": error},
                 "band": match &r.coverage {
-                    Ok((c, t)) => json!({"covered": c, "measurements": t, "covered_by_parameter_band": r.parameter_covered}),
+                    Ok(c) => json!({"covered": c.covered, "measurements": c.total, "mean_width_k": c.mean_width_k(),
+                        "covered_by_parameter_band": r.parameter_coverage.map(|p| p.covered),
+                        "parameter_band_mean_width_k": r.parameter_coverage.and_then(|p| p.mean_width_k())}),
                     Err(why) => json!({"none": why}),
                 },
             })
@@ -461,14 +493,15 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
         .iter()
         .filter_map(|r| r.chilldown.as_ref().and_then(|(_, d, m)| Some(((*m)? - (*d)?).abs() / (*d)?)))
         .collect();
-    let (covered, total) =
-        results.iter().filter_map(|r| r.coverage.as_ref().ok()).fold((0, 0), |(a, b), (c, t)| (a + c, b + t));
-    let parameter_covered: usize = results.iter().filter_map(|r| r.parameter_covered).sum();
+    let all = results.iter().filter_map(|r| r.coverage.as_ref().ok()).fold(Coverage::default(), |a, c| a.add(*c));
+    let (covered, total) = (all.covered, all.total);
+    let parameter_covered: usize = results.iter().filter_map(|r| r.parameter_coverage.map(|p| p.covered)).sum();
     let summary = json!({
         "folds": folds,
         "mean_absolute_chilldown_error": (!errors.is_empty()).then(|| errors.iter().sum::<f64>() / errors.len() as f64),
         "band_coverage": (total > 0).then(|| covered as f64 / total as f64),
         "parameter_band_coverage": (total > 0).then(|| parameter_covered as f64 / total as f64),
+        "band_mean_width_k": all.mean_width_k(),
         "folds_with_band": results.iter().filter(|r| r.coverage.is_ok()).count(),
     });
     let mut csv = CsvText::new([
@@ -480,16 +513,18 @@ fn write_summary(out_dir: &Path, results: &[FoldResult], figures: &[Figure]) -> 
         "covered",
         "measurements",
         "covered_by_parameter_band",
+        "band_mean_width_k",
     ])?;
     for r in results {
         let (cs, d, m) = r.chilldown.clone().unwrap_or_default();
-        let (c, t) =
-            r.coverage.as_ref().map_or((String::new(), String::new()), |(c, t)| (c.to_string(), t.to_string()));
-        let pc = r.parameter_covered.map(|c| c.to_string()).unwrap_or_default();
+        let (c, t, w) = r.coverage.as_ref().map_or((String::new(), String::new(), String::new()), |c| {
+            (c.covered.to_string(), c.total.to_string(), c.mean_width_k().map(fmt_num).unwrap_or_default())
+        });
+        let pc = r.parameter_coverage.map(|c| c.covered.to_string()).unwrap_or_default();
         for (station, rms) in &r.rms {
             let last = *station == cs;
             let opt = |v: Option<f64>| if last { v.map(fmt_num).unwrap_or_default() } else { String::new() };
-            csv.row([r.experiment.as_str(), station, &fmt_num(*rms), &opt(d), &opt(m), &c, &t, &pc])?;
+            csv.row([r.experiment.as_str(), station, &fmt_num(*rms), &opt(d), &opt(m), &c, &t, &pc, &w])?;
         }
     }
     let mut files: Vec<(String, Vec<u8>)> = vec![
@@ -520,11 +555,17 @@ fn print_table(results: &[FoldResult]) {
             None => "no chilldown".into(),
         };
         let band = match &r.coverage {
-            Ok((c, t)) if *t > 0 => {
-                let own = r.parameter_covered.map_or_else(String::new, |p| {
-                    format!("; the parameters' band alone {:.0} %", 100.0 * p as f64 / *t as f64)
+            Ok(c) if c.total > 0 => {
+                let own = r.parameter_coverage.map_or_else(String::new, |p| {
+                    format!("; the parameters' band alone {:.0} %", 100.0 * p.covered as f64 / c.total as f64)
                 });
-                format!("band covers {c} of {t} ({:.0} %{own})", 100.0 * *c as f64 / *t as f64)
+                format!(
+                    "band covers {} of {} ({:.0} %{own}), {:.1} K wide on average",
+                    c.covered,
+                    c.total,
+                    100.0 * c.covered as f64 / c.total as f64,
+                    c.mean_width_k().unwrap_or(f64::NAN)
+                )
             }
             Ok(_) => "band and data do not overlap".into(),
             Err(why) => format!("no band ({why})"),
@@ -551,5 +592,20 @@ mod tests {
         assert_eq!(band_at(&band, 1.0), Some((3.0, 5.0)));
         assert_eq!(band_at(&band, 1.5), None);
         assert_eq!(band_at(&band, -0.1), None);
+    }
+
+    #[test]
+    fn coverage_counts_the_measurements_inside_and_sums_the_width() {
+        let mut data = Dataset::default();
+        data.series.insert(
+            ("TS1".into(), "wall_temperature_k".into()),
+            cryofit_calib::data::Series { x_m: 1.0, times: vec![0.0, 0.5, 1.0, 2.0], values: vec![2.0, 1.0, 4.0, 9.0] },
+        );
+        let bands = Bands::from([("TS1".to_string(), vec![(0.0, 1.0, 3.0), (1.0, 3.0, 5.0)])]);
+        // 2.0 in [1, 3]; 1.0 below [2, 4]; 4.0 in [3, 5]; 2 s is past the band
+        let c = coverage(&data, &bands);
+        assert_eq!((c.covered, c.total), (2, 3));
+        assert_eq!(c.mean_width_k(), Some(2.0));
+        assert_eq!(Coverage::default().mean_width_k(), None);
     }
 }

@@ -108,13 +108,16 @@ fn each_run_is_refitted_without_itself_and_predicted() {
         let n = band["measurements"].as_u64().filter(|&n| n > 0).unwrap_or_else(|| panic!("{band}"));
         let (c, p) = (band["covered"].as_u64().unwrap(), band["covered_by_parameter_band"].as_u64().unwrap());
         assert!(p <= n && c <= n, "{band}");
+        // and its sharpness: its mean width at the measurements
+        assert!(band["mean_width_k"].as_f64().is_some_and(|w| w > 0.0 && w.is_finite()), "{band}");
         let figure = cv.join(format!("crossval-{name}.svg"));
         assert!(std::fs::read_to_string(&figure).unwrap().contains("predicted by the refit without it"));
     }
     assert!(summary["mean_absolute_chilldown_error"].as_f64().is_some(), "{summary}");
     let csv = std::fs::read_to_string(cv.join("crossval.csv")).unwrap();
     assert!(csv.starts_with(
-        "left_out,station,rms_k,chilldown_data_s,chilldown_model_s,covered,measurements,covered_by_parameter_band\n"
+        "left_out,station,rms_k,chilldown_data_s,chilldown_model_s,covered,measurements,covered_by_parameter_band,\
+         band_mean_width_k\n"
     ));
     assert_eq!(csv.lines().count(), 1 + 8);
     std::fs::remove_dir_all(&dir).ok();
