@@ -632,17 +632,11 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
             .series
             .iter()
             .map(|(key, s)| {
-                // the misfit once the model's clock is scaled to its station's measured chilldown
-                let time_scaled = match pairs.get(&key.0) {
-                    Some((Some(d), Some(m))) => model
-                        .series
-                        .get(key)
-                        .zip(e.data.series.get(key))
-                        .and_then(|(ms, ds)| cost::time_scaled_rms(ms, ds, m / d)),
-                    _ => None,
-                };
+                // the clock factor that best aligns the model with the data, and the misfit left
+                let aligned =
+                    model.series.get(key).zip(e.data.series.get(key)).and_then(|(m, d)| cost::best_time_scale(m, d));
                 json!({"station": key.0, "quantity": key.1, "rms": s.rms, "points": s.points, "cost": s.cost,
-                       "time_scaled_rms": time_scaled})
+                       "time_scale": aligned.map(|a| a.0), "time_scaled_rms": aligned.map(|a| a.1)})
             })
             .collect();
         let chill: BTreeMap<String, serde_json::Value> =

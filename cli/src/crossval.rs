@@ -21,7 +21,7 @@
 //!   the noise inflation the joint calibration's last variance stage measured (`--from`), written
 //!   into the fold's calibration file as a number; the refit then needs no Hessian of its own.
 //! - The band is the posterior-predictive band of a measurement that `cryofit predict` writes
-//!   (`p05`–`p95`: the model at posterior draws, its clock scaled by the refit's own chilldown-time
+//!   (`p05`–`p95`: the model at posterior draws, its clock scaled by the refit's own clock
 //!   error, plus the misfit left once on time, per station; see `predict`'s decision); its coverage counts the left-out measurements whose
 //!   value lies between the band's 5 and 95 % at the measurement's time (linear between the
 //!   band's times). The coverage of the parameters' band alone (`q05`–`q95`) is reported beside

@@ -15,25 +15,28 @@
 //! Decision: `P(d_n | θ)` is the model at θ with its clock in error, plus a Gaussian error, both
 //! measured on the calibration's own fit at its best point (`result.json`, `fit`):
 //! - the clock: a measurement at `t` is the model at `r·t`, `ln r ~ N(0, s²)`, with `s` the RMS of
-//!   ln(model chilldown time / measured chilldown time) over every station and experiment of the
-//!   calibration (the maximum-likelihood σ given the best point; about zero, not about the mean
-//!   ratio, so a calibration that is late on every run widens the band rather than shifting it
-//!   off the model's curve: one bias estimated from a few runs is no correction to trust for
-//!   a run under other conditions). The fitted model's error is
-//!   mostly one of timing — its front arrives early or late, the curves before and after it agree —
-//!   and an additive error of constant width cannot say so: it must be as wide as the front's
-//!   misplacement everywhere, so a band that covers the front is ±50 K on a line that has long
-//!   settled at 77 K and reaches below 0 K. Scaling the clock keeps every centre on the model's own
-//!   curve (a temperature stays a temperature the model reached) and puts the width where the front
-//!   is uncertain.
-//! - the Gaussian: per station and quantity, the RMS of model − data once the model's clock is
-//!   scaled to that station's measured chilldown (`time_scaled_rms`), pooled over the experiments
-//!   by points; a station the calibration did not fit takes the quantity's RMS pooled over all its
-//!   stations. This is the error of the curve's shape; the weights' σ (the instruments' noise)
-//!   would claim the model is as good as the thermocouples.
+//!   ln r over the station's fitted series in every experiment of the calibration (over every
+//!   series where the station has fewer than two: near the inlet the front's timing errs by
+//!   more than at the far end — 0.95–1.62 at station 1 of the six NBS runs against 0.80–1.10 at
+//!   station 4 — and one σ for all would widen the far stations' bands for the near one's), r the factor that best aligns the model with that series' data (`time_scale`, from
+//!   [`cryofit_calib::cost::best_time_scale`]; the maximum-likelihood σ given the best point,
+//!   about zero, not about the mean factor, so a calibration that is late on every run widens
+//!   the band rather than shifting it off the model's curve: one bias estimated from a few runs
+//!   is no correction to trust for a run under other conditions). The fitted model's error is
+//!   mostly one of timing — its front arrives early or late, the curves before and after it
+//!   agree — and an additive error of constant width cannot say so: it must be as wide as the
+//!   front's misplacement everywhere, so a band that covers the front is ±50 K on a line that has
+//!   long settled at 77 K and reaches below 0 K. Scaling the clock keeps every centre on the
+//!   model's own curve (a temperature stays a temperature the model reached) and puts the width
+//!   where the front is uncertain.
+//! - the Gaussian: per station and quantity, the RMS of model − data left at that best alignment
+//!   (`time_scaled_rms`), pooled over the experiments by points; a station the calibration did
+//!   not fit takes the quantity's RMS pooled over all its stations. This is the error of the
+//!   curve's shape; the weights' σ (the instruments' noise) would claim the model is as good as
+//!   the thermocouples.
 //!
-//! A calibration whose fit has fewer than two chilldown pairs (or a `result.json` written before
-//! `time_scaled_rms`) has no clock error: the Gaussian is then the plain residual RMS, as wide as it
+//! A calibration whose fit has fewer than two aligned series (or a `result.json` written before
+//! `time_scale`) has no clock error: the Gaussian is then the plain residual RMS, as wide as it
 //! must be. A quantity the calibration did not fit has no `p05`/`p95` (empty cells). The band of a
 //! row is the equal-weight mixture of N(model at each draw at each of 16 equal-probability clock
 //! factors, σ²), its 5 and 95 % points found by bisection; the clock factors are clamped to the
@@ -210,37 +213,40 @@ fn read_draws(text: &str, file: &str) -> Result<(Vec<String>, Vec<Vec<f64>>)> {
 
 /// The error of a measurement about the model (see the module's decision), from a calibration's
 /// `result.json`: the σ of its Gaussian part per (station, quantity) and, for stations the
-/// calibration did not fit, per quantity; and the σ of the log of the model's clock error, when
-/// the calibration's fit has chilldown times to measure it from.
+/// calibration did not fit, per quantity; and the σ of the log of the model's clock error, per
+/// station and over all, when the calibration's fit has aligned series to measure it from.
 #[derive(Debug, Default, PartialEq)]
 struct ErrorModel {
     series: BTreeMap<(String, String), f64>,
     quantity: BTreeMap<String, f64>,
-    /// σ of ln(model chilldown / measured chilldown) over the calibration's stations and experiments.
+    /// σ of ln(best clock factor) over all the calibration's aligned series (at least two).
     timing: Option<f64>,
+    /// The same per station, for stations with at least two aligned series.
+    station_timing: BTreeMap<String, f64>,
 }
 
 /// Equal-probability points of the clock error's distribution in the band's mixture.
 const TIMING_NODES: usize = 16;
 
 impl ErrorModel {
-    /// Pools `fit.<experiment>` of `result` over the experiments: `series[]` (`rms` or, with a
-    /// clock error, `time_scaled_rms`, by `points`) and `chilldown_time_s` (the clock error).
+    /// Pools the series of `fit.<experiment>.series[]` of `result` over the experiments: the
+    /// clock error from each series' `time_scale`, the Gaussian from `time_scaled_rms` (with a
+    /// clock error) or `rms` (without), by `points`.
     fn from_result(result: &serde_json::Value) -> Self {
         let fits: Vec<&serde_json::Value> = result["fit"].as_object().into_iter().flat_map(|m| m.values()).collect();
-        let log_ratios: Vec<f64> = fits
+        let log_scales: Vec<(&str, f64)> = fits
             .iter()
-            .filter_map(|fit| fit["chilldown_time_s"].as_object())
-            .flat_map(|m| m.values())
-            .filter_map(|c| Some((c["model_s"].as_f64()? / c["data_s"].as_f64()?).ln()))
-            .filter(|r| r.is_finite())
+            .flat_map(|fit| fit["series"].as_array().into_iter().flatten())
+            .filter_map(|s| Some((s["station"].as_str()?, s["time_scale"].as_f64()?.ln())))
+            .filter(|(_, r)| r.is_finite())
             .collect();
-        // a result.json from before `time_scaled_rms` has no shape error to go with a clock error
-        let scaled = fits
-            .iter()
-            .any(|fit| fit["series"].as_array().into_iter().flatten().any(|s| s.get("time_scaled_rms").is_some()));
-        let timing = (scaled && log_ratios.len() >= 2)
-            .then(|| (log_ratios.iter().map(|r| r * r).sum::<f64>() / log_ratios.len() as f64).sqrt());
+        let rms_of = |v: &[f64]| (v.len() >= 2).then(|| (v.iter().map(|r| r * r).sum::<f64>() / v.len() as f64).sqrt());
+        let timing = rms_of(&log_scales.iter().map(|x| x.1).collect::<Vec<_>>());
+        let mut by_station: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        for (station, r) in &log_scales {
+            by_station.entry(station.to_string()).or_default().push(*r);
+        }
+        let station_timing = by_station.into_iter().filter_map(|(st, v)| Some((st, rms_of(&v)?))).collect();
         let mut series: BTreeMap<(String, String), (f64, f64)> = BTreeMap::new();
         let mut quantity: BTreeMap<String, (f64, f64)> = BTreeMap::new();
         for fit in &fits {
@@ -250,7 +256,7 @@ impl ErrorModel {
                 else {
                     continue;
                 };
-                // a series whose station has no chilldown pair keeps its clock: its plain RMS
+                // a series the alignment could not measure keeps its clock: its plain RMS
                 let rms = if timing.is_some() { s["time_scaled_rms"].as_f64().unwrap_or(rms) } else { rms };
                 if !rms.is_finite() || n <= 0.0 {
                     continue;
@@ -269,6 +275,7 @@ impl ErrorModel {
             series: series.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
             quantity: quantity.into_iter().map(|(k, v)| (k, pooled(v))).collect(),
             timing,
+            station_timing,
         }
     }
 
@@ -280,10 +287,15 @@ impl ErrorModel {
             .filter(|s| *s > 0.0)
     }
 
-    /// The factors the model's clock is scaled by in the band: `TIMING_NODES` equal-probability
-    /// points of exp(N(0, timing²)), or just 1 without a clock error.
-    fn clock_factors(&self) -> Vec<f64> {
-        match self.timing {
+    /// The σ of the clock error's log at `station`: its own, or the one over all series.
+    fn timing_at(&self, station: &str) -> Option<f64> {
+        self.station_timing.get(station).copied().or(self.timing)
+    }
+
+    /// The factors the model's clock is scaled by in the band at `station`: `TIMING_NODES`
+    /// equal-probability points of exp(N(0, s²)), or just 1 without a clock error.
+    fn clock_factors(&self, station: &str) -> Vec<f64> {
+        match self.timing_at(station) {
             Some(s) if s > 0.0 => {
                 (0..TIMING_NODES).map(|j| (s * normal_quantile((j as f64 + 0.5) / TIMING_NODES as f64)).exp()).collect()
             }
@@ -383,10 +395,11 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         bail!("internal error: runs recorded different numbers of probe values");
     }
     let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
-    let factors = errors.clock_factors();
+    let factors: BTreeMap<&str, Vec<f64>> =
+        ok[0].probes.iter().map(|o| (o.station.as_str(), errors.clock_factors(&o.station))).collect();
     let series: Vec<Dataset> = ok.iter().map(|o| probes_dataset(&o.probes)).collect();
     let mut values = Vec::with_capacity(ok.len());
-    let mut centres = Vec::with_capacity(ok.len() * factors.len());
+    let mut centres = Vec::with_capacity(ok.len() * TIMING_NODES);
     for k in 0..n_rows {
         let o = &ok[0].probes[k];
         values.clear();
@@ -394,6 +407,7 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         values.sort_by(f64::total_cmp);
         let (p05, p95) = errors.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
             let key = (o.station.clone(), o.quantity.to_string());
+            let factors = &factors[o.station.as_str()];
             centres.clear();
             for s in series.iter().filter_map(|d| d.series.get(&key)) {
                 let (first, last) = (s.times[0], s.times[s.times.len() - 1]);
@@ -446,6 +460,9 @@ pub fn run(args: &PredictArgs) -> Result<()> {
             "quantity": errors.quantity,
         },
         "timing_sigma_log": errors.timing,
+        "timing_sigma_log_per_station": stations.iter()
+            .filter_map(|st| Some((st.clone(), json!(errors.timing_at(st)?))))
+            .collect::<serde_json::Map<_, _>>(),
     });
     let out_dir = args.out.clone().unwrap_or_else(|| {
         let stem = args.case.file_stem().map_or_else(|| "case".into(), |s| s.to_string_lossy().into_owned());
@@ -466,9 +483,14 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         stations.iter().filter_map(|st| Some(format!("{st} {:.1}", errors.get(st, "wall_temperature_k")?))).collect();
     if !sigmas.is_empty() {
         match errors.timing {
-            Some(s) => println!(
-                "  measurement band p05–p95: the model at the draws, its clock scaled by the calibration's chilldown-time \
-                 error (σ of the log {s:.3}), ± the misfit left once on time (wall temperature, K: {})",
+            Some(_) => println!(
+                "  measurement band p05–p95: the model at the draws, its clock scaled by the calibration's clock error \
+                 (σ of the log: {}), ± the misfit left at the best alignment (wall temperature, K: {})",
+                stations
+                    .iter()
+                    .filter_map(|st| Some(format!("{st} {:.3}", errors.timing_at(st)?)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 sigmas.join(", ")
             ),
             None => println!(
@@ -523,33 +545,38 @@ mod tests {
     }
 
     #[test]
-    fn the_clock_error_comes_from_chilldown_pairs_and_the_shape_error_from_the_scaled_misfit() {
+    fn the_clock_error_comes_from_the_series_alignments_and_the_shape_error_from_what_they_leave() {
         let result = json!({"fit": {
             "a": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 40.0, "points": 2,
-                              "time_scaled_rms": 6.0}],
-                  "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 110.0}}},
+                              "time_scale": 1.1, "time_scaled_rms": 6.0}]},
             "b": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 30.0, "points": 2,
-                              "time_scaled_rms": 8.0}],
-                  "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 90.0},
-                                       "TS2": {"data_s": 50.0, "model_s": null}}}
+                              "time_scale": 0.9, "time_scaled_rms": 8.0},
+                             {"station": "TS2", "quantity": "wall_temperature_k", "rms": 3.0, "points": 2,
+                              "time_scale": null, "time_scaled_rms": null}]}
         }});
         let r = ErrorModel::from_result(&result);
         let s = ((1.1f64.ln().powi(2) + 0.9f64.ln().powi(2)) / 2.0).sqrt();
         assert!((r.timing.unwrap() - s).abs() < 1e-12, "{:?}", r.timing);
+        // TS1 has two aligned series, its own σ; TS2 none, the one over all
+        assert_eq!(r.timing_at("TS1"), r.station_timing.get("TS1").copied());
+        assert!((r.timing_at("TS1").unwrap() - s).abs() < 1e-12);
+        assert_eq!(r.timing_at("TS2"), r.timing);
         assert!((r.get("TS1", "wall_temperature_k").unwrap() - 50f64.sqrt()).abs() < 1e-12);
+        // a series without an alignment keeps its plain RMS
+        assert_eq!(r.get("TS2", "wall_temperature_k"), Some(3.0));
         // the clock factors: 16 equal-probability points of a log-normal, symmetric in the log
-        let f = r.clock_factors();
+        let f = r.clock_factors("TS1");
         assert_eq!(f.len(), TIMING_NODES);
         assert!((f[0] * f[TIMING_NODES - 1] - 1.0).abs() < 1e-9);
         assert!(f.windows(2).all(|w| w[0] < w[1]));
         let mean_sq = f.iter().map(|x| x.ln().powi(2)).sum::<f64>() / f.len() as f64;
         assert!((mean_sq.sqrt() / s - 1.0).abs() < 0.1, "{mean_sq}");
-        // without the scaled misfits (an older result.json), no clock error and the plain RMS
+        // without alignments (an older result.json), no clock error and the plain RMS
         let old = json!({"fit": {"a": {"series": [{"station": "TS1", "quantity": "wall_temperature_k", "rms": 40.0,
             "points": 2}], "chilldown_time_s": {"TS1": {"data_s": 100.0, "model_s": 110.0},
             "TS2": {"data_s": 50.0, "model_s": 60.0}}}}});
         let r = ErrorModel::from_result(&old);
-        assert_eq!((r.timing, r.clock_factors()), (None, vec![1.0]));
+        assert_eq!((r.timing, r.clock_factors("TS1")), (None, vec![1.0]));
         assert_eq!(r.get("TS1", "wall_temperature_k"), Some(40.0));
     }
 

@@ -144,15 +144,15 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     assert!(bands.starts_with("time_s,station,x_m,quantity,q05,q50,q95,p05,p95\n"));
     let p: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(pred.join("prediction.json")).unwrap()).unwrap();
-    // the measurement's error, from the calibration's own fit: the clock's from its chilldown
-    // pairs, the shape's from each series' misfit once on time (its plain RMS without a pair)
+    // the measurement's error, from the calibration's own fit: the clock's from each series'
+    // best alignment, the shape's from the misfit that alignment leaves
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("result.json")).unwrap()).unwrap();
-    let logs: Vec<f64> = result["fit"]["case"]["chilldown_time_s"]
-        .as_object()
+    let logs: Vec<f64> = result["fit"]["case"]["series"]
+        .as_array()
         .unwrap()
-        .values()
-        .filter_map(|c| Some((c["model_s"].as_f64()? / c["data_s"].as_f64()?).ln()))
+        .iter()
+        .filter_map(|s| Some(s["time_scale"].as_f64()?.ln()))
         .collect();
     match p["timing_sigma_log"].as_f64() {
         Some(s) => {
