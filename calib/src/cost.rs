@@ -232,10 +232,10 @@ pub fn best_time_scale(model: &Series, data: &Series) -> Option<(f64, f64)> {
     for k in 1..=steps {
         for sign in [1.0, -1.0] {
             let r = (sign * k as f64 * LOG_TIME_SCALE_STEP).exp();
-            if let Some(rms) = time_scaled_rms(model, data, r) {
-                if rms < best.1 * (1.0 - 1e-9) {
-                    best = (r, rms);
-                }
+            if let Some(rms) = time_scaled_rms(model, data, r)
+                && rms < best.1 * (1.0 - 1e-9)
+            {
+                best = (r, rms);
             }
         }
     }
