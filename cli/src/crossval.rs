@@ -22,9 +22,10 @@
 //!   into the fold's calibration file as a number; the refit then needs no Hessian of its own.
 //! - The band is the posterior-predictive band of a measurement that `cryofit predict` writes
 //!   (`p05`–`p95`: the model at posterior draws, its clock scaled by the refit's own clock
-//!   error, plus the misfit left once on time, per station; see `predict`'s decision); its coverage counts the left-out measurements whose
-//!   value lies between the band's 5 and 95 % at the measurement's time (linear between the
-//!   band's times). The coverage of the parameters' band alone (`q05`–`q95`) is reported beside
+//!   error, plus the misfit left at the best alignment, per station; see `predict`'s decision);
+//!   its coverage counts the left-out measurements whose value lies between the band's 5 and
+//!   95 % at the measurement's time (linear between the band's times), and its mean width there
+//!   is reported with it. The coverage of the parameters' band alone (`q05`–`q95`) is reported beside
 //!   it: the share of the measurements that the parameters' uncertainty by itself explains.
 
 use std::collections::BTreeMap;
