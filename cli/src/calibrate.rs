@@ -626,7 +626,6 @@ type FitRow<'a> = (&'a Experiment, cryofit_calib::cost::Fit, cryofit_solver::dri
 fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_points: usize) -> Result<String> {
     let mut fit = serde_json::Map::new();
     for (e, f, out) in fits {
-        let pairs = chilldown_pairs(&e.data, out);
         let model = cryofit_calib::model::probes_dataset(&out.probes);
         let series: Vec<_> = f
             .series
@@ -639,8 +638,10 @@ fn result_json(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], data_poin
                        "time_scale": aligned.map(|a| a.0), "time_scaled_rms": aligned.map(|a| a.1)})
             })
             .collect();
-        let chill: BTreeMap<String, serde_json::Value> =
-            pairs.into_iter().map(|(st, (d, m))| (st, json!({"data_s": d, "model_s": m}))).collect();
+        let chill: BTreeMap<String, serde_json::Value> = chilldown_pairs(&e.data, out)
+            .into_iter()
+            .map(|(st, (d, m))| (st, json!({"data_s": d, "model_s": m})))
+            .collect();
         fit.insert(e.name.clone(), json!({"cost": f.cost, "series": series, "chilldown_time_s": chill}));
     }
     let value = json!({

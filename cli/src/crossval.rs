@@ -269,6 +269,11 @@ struct Coverage {
 }
 
 impl Coverage {
+    /// Share of the measurements inside the band (NaN without measurements).
+    fn share(&self) -> f64 {
+        self.covered as f64 / self.total as f64
+    }
+
     /// Mean width of the band at the measurements, K.
     fn mean_width_k(&self) -> Option<f64> {
         (self.total > 0).then(|| self.width_sum_k / self.total as f64)
@@ -441,7 +446,7 @@ fn predict_left_out(
     let note = match &coverage {
         Ok(c) if c.total > 0 => format!(
             "band covers {:.0} % of the measurements, {:.0} K wide on average",
-            100.0 * c.covered as f64 / c.total as f64,
+            100.0 * c.share(),
             c.mean_width_k().unwrap_or(f64::NAN)
         ),
         Ok(_) => "the band and the measurements do not overlap in time".into(),
@@ -564,7 +569,7 @@ fn print_table(results: &[FoldResult]) {
                     "band covers {} of {} ({:.0} %{own}), {:.1} K wide on average",
                     c.covered,
                     c.total,
-                    100.0 * c.covered as f64 / c.total as f64,
+                    100.0 * c.share(),
                     c.mean_width_k().unwrap_or(f64::NAN)
                 )
             }

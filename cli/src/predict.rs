@@ -395,8 +395,11 @@ pub fn run(args: &PredictArgs) -> Result<()> {
         bail!("internal error: runs recorded different numbers of probe values");
     }
     let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
-    let factors: BTreeMap<&str, Vec<f64>> =
-        ok[0].probes.iter().map(|o| (o.station.as_str(), errors.clock_factors(&o.station))).collect();
+    // one set of clock factors per station (not per probe row)
+    let mut factors: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    for o in &ok[0].probes {
+        factors.entry(o.station.as_str()).or_insert_with(|| errors.clock_factors(&o.station));
+    }
     let series: Vec<Dataset> = ok.iter().map(|o| probes_dataset(&o.probes)).collect();
     let mut values = Vec::with_capacity(ok.len());
     let mut centres = Vec::with_capacity(ok.len() * TIMING_NODES);
