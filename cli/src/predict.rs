@@ -41,6 +41,17 @@
 //! row is the equal-weight mixture of N(model at each draw at each of 16 equal-probability clock
 //! factors, σ²), its 5 and 95 % points found by bisection; the clock factors are clamped to the
 //! run's time range (the model's first or last value).
+//!
+//! Decision: each Gaussian of the mixture is truncated to the quantity's physical range
+//! ([`physical_range`]) and renormalised — the measurement given that it is possible. A
+//! temperature is at least the fluid's triple point: no wall in the line is colder than the
+//! coldest fluid in it, and liquid colder than that would be solid. A pressure is positive, a void
+//! fraction between 0 and 1. Without it the σ pooled over the calibration's runs (8–24 K on the
+//! NBS fits, which hold the front's misfits) puts the band's lower edge of a hydrogen line that
+//! has settled at 20 K below 0 K. Readings below the triple point exist — the NBS hydrogen
+//! figures' low-temperature crossings, which the report calls thermocouple error (48 of the 1 590
+//! points of the subcooled 2.5 atm run, down to 10 K) — and the band does not claim them: it is
+//! the band of a measurement that can be true.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -54,6 +65,7 @@ use cryofit_calib::draws::{gaussian_draws, space_draws};
 use cryofit_calib::model::probes_dataset;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver::{self, Output};
+use cryofit_solver::fluids::FluidConstants;
 use cryofit_solver::params::{self, ParameterSet};
 use rayon::prelude::*;
 use serde_json::json;
@@ -322,18 +334,57 @@ fn normal_cdf(z: f64) -> f64 {
 
 /// The standard normal's `p` quantile: the mixture of one (to [`normal_cdf`]'s accuracy).
 fn normal_quantile(p: f64) -> f64 {
-    mixture_quantile(&[0.0], 1.0, p)
+    mixture_quantile(&[0.0], 1.0, (f64::NEG_INFINITY, f64::INFINITY), p)
 }
 
-/// The `q` quantile of the equal-weight mixture of N(c, σ²) over `centres`, by bisection (80
-/// halvings of a bracket 20 σ wider than the centres' range: far below a rounding of the value).
-fn mixture_quantile(centres: &[f64], sigma: f64, q: f64) -> f64 {
+/// The range a measured `quantity` can take in a line of `fluid`: temperatures from the fluid's
+/// triple point up, pressures above 0, void fractions in 0–1; other quantities are unbounded.
+fn physical_range(quantity: &str, fluid: &FluidConstants) -> (f64, f64) {
+    match quantity {
+        q if q.ends_with("_temperature_k") => (fluid.t_triple_k, f64::INFINITY),
+        "pressure_pa" => (0.0, f64::INFINITY),
+        "void_fraction" => (0.0, 1.0),
+        _ => (f64::NEG_INFINITY, f64::INFINITY),
+    }
+}
+
+/// The CDF at `x` of N(c, σ²) truncated to `range` and renormalised; a centre so far outside the
+/// range that no mass is left in it is the point at the range's nearer end.
+fn truncated_normal_cdf(x: f64, c: f64, sigma: f64, (a, b): (f64, f64)) -> f64 {
+    if x < a {
+        return 0.0;
+    }
+    if x >= b {
+        return 1.0;
+    }
+    let at = |y: f64| {
+        if y == f64::NEG_INFINITY {
+            0.0
+        } else if y == f64::INFINITY {
+            1.0
+        } else {
+            normal_cdf((y - c) / sigma)
+        }
+    };
+    let (fa, fb) = (at(a), at(b));
+    let mass = fb - fa;
+    if mass < 1e-12 {
+        return if x >= c.clamp(a, b) { 1.0 } else { 0.0 };
+    }
+    ((at(x) - fa) / mass).clamp(0.0, 1.0)
+}
+
+/// The `q` quantile of the equal-weight mixture of N(c, σ²) over `centres`, each truncated to
+/// `range` (see [`truncated_normal_cdf`]), by bisection (80 halvings of a bracket 20 σ wider than
+/// the centres' range, cut to `range`: far below a rounding of the value).
+fn mixture_quantile(centres: &[f64], sigma: f64, range: (f64, f64), q: f64) -> f64 {
     if centres.is_empty() || sigma.is_nan() || sigma <= 0.0 {
         return f64::NAN;
     }
-    let cdf = |x: f64| centres.iter().map(|c| normal_cdf((x - c) / sigma)).sum::<f64>() / centres.len() as f64;
-    let mut lo = centres.iter().copied().fold(f64::INFINITY, f64::min) - 10.0 * sigma;
-    let mut hi = centres.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 10.0 * sigma;
+    let cdf =
+        |x: f64| centres.iter().map(|&c| truncated_normal_cdf(x, c, sigma, range)).sum::<f64>() / centres.len() as f64;
+    let mut lo = (centres.iter().copied().fold(f64::INFINITY, f64::min) - 10.0 * sigma).clamp(range.0, range.1);
+    let mut hi = (centres.iter().copied().fold(f64::NEG_INFINITY, f64::max) + 10.0 * sigma).clamp(range.0, range.1);
     for _ in 0..80 {
         let mid = 0.5 * (lo + hi);
         if cdf(mid) < q {
@@ -416,7 +467,11 @@ pub fn run(args: &PredictArgs) -> Result<()> {
                 let (first, last) = (s.times[0], s.times[s.times.len() - 1]);
                 centres.extend(factors.iter().filter_map(|f| s.at((o.time_s * f).clamp(first, last))));
             }
-            (fmt_num(mixture_quantile(&centres, sigma, 0.05)), fmt_num(mixture_quantile(&centres, sigma, 0.95)))
+            let range = physical_range(o.quantity, table.constants());
+            (
+                fmt_num(mixture_quantile(&centres, sigma, range, 0.05)),
+                fmt_num(mixture_quantile(&centres, sigma, range, 0.95)),
+            )
         });
         bands.row([
             &fmt_num(o.time_s),
@@ -521,11 +576,47 @@ mod tests {
 
     #[test]
     fn a_mixture_of_one_is_the_normal_and_of_two_far_apart_splits() {
-        let q = mixture_quantile(&[100.0], 10.0, 0.95);
+        let all = (f64::NEG_INFINITY, f64::INFINITY);
+        let q = mixture_quantile(&[100.0], 10.0, all, 0.95);
         assert!((q - 116.448_536).abs() < 1e-4, "{q}");
         // two components 1000 σ apart: the 5 % point is the lower one's 10 % point
-        let q = mixture_quantile(&[0.0, 1000.0], 1.0, 0.05);
+        let q = mixture_quantile(&[0.0, 1000.0], 1.0, all, 0.05);
         assert!((q + 1.281_551_6).abs() < 1e-5, "{q}");
+    }
+
+    #[test]
+    fn a_truncated_mixture_stays_in_the_physical_range_and_renormalises() {
+        // a 20 K hydrogen wall with σ = 20 K: untruncated its 5 % point is near −13 K
+        let free = mixture_quantile(&[20.0], 20.0, (f64::NEG_INFINITY, f64::INFINITY), 0.05);
+        assert!(free < -12.0, "{free}");
+        let floor = 13.8;
+        let q05 = mixture_quantile(&[20.0], 20.0, (floor, f64::INFINITY), 0.05);
+        // the 5 % point of N(20, 20²) given X ≥ 13.8: Φ(z) = Φ(−0.31) + 0.05·(1 − Φ(−0.31))
+        let fa = normal_cdf((floor - 20.0) / 20.0);
+        let expect = 20.0 + 20.0 * normal_quantile(fa + 0.05 * (1.0 - fa));
+        assert!(q05 >= floor && (q05 - expect).abs() < 1e-6, "{q05} against {expect}");
+        // far above the floor the truncation changes nothing
+        let q = mixture_quantile(&[300.0], 10.0, (floor, f64::INFINITY), 0.95);
+        assert!((q - 316.448_536).abs() < 1e-4, "{q}");
+        // a void fraction stays in 0–1 on both sides
+        let (lo, hi) = physical_range("void_fraction", &nitrogen());
+        assert!(mixture_quantile(&[0.98], 0.1, (lo, hi), 0.95) <= 1.0);
+        assert!(mixture_quantile(&[0.02], 0.1, (lo, hi), 0.05) >= 0.0);
+        // a centre with no mass left in the range is the range's end
+        assert!((mixture_quantile(&[-50.0], 1.0, (0.0, f64::INFINITY), 0.5) - 0.0).abs() < 1e-9);
+    }
+
+    fn nitrogen() -> FluidConstants {
+        cryofit_solver::fluids::embedded("nitrogen").unwrap().constants().clone()
+    }
+
+    #[test]
+    fn temperatures_are_bounded_by_the_triple_point_and_velocities_not_at_all() {
+        let n2 = nitrogen();
+        assert_eq!(physical_range("wall_temperature_k", &n2).0, n2.t_triple_k);
+        assert!((n2.t_triple_k - 63.15).abs() < 0.1, "{}", n2.t_triple_k);
+        assert_eq!(physical_range("pressure_pa", &n2), (0.0, f64::INFINITY));
+        assert_eq!(physical_range("gas_velocity_m_s", &n2), (f64::NEG_INFINITY, f64::INFINITY));
     }
 
     #[test]
