@@ -406,6 +406,54 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
     if k + 1 < sorted.len() { sorted[k] * (1.0 - w) + sorted[k + 1] * w } else { sorted[k] }
 }
 
+/// `bands.csv`: per probe row of the runs `ok` (every one records the same rows in the same
+/// order), the model's 5/50/95 % over the draws and the measurement band of `errors` within the
+/// quantity's physical range in a line of `fluid`.
+fn bands_csv(ok: &[&Output], errors: &ErrorModel, fluid: &FluidConstants) -> Result<String> {
+    let n_rows = ok[0].probes.len();
+    let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
+    // one set of clock factors per station (not per probe row)
+    let mut factors: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
+    for o in &ok[0].probes {
+        factors.entry(o.station.as_str()).or_insert_with(|| errors.clock_factors(&o.station));
+    }
+    let series: Vec<Dataset> = ok.iter().map(|o| probes_dataset(&o.probes)).collect();
+    let mut values = Vec::with_capacity(ok.len());
+    let mut centres = Vec::with_capacity(ok.len() * TIMING_NODES);
+    for k in 0..n_rows {
+        let o = &ok[0].probes[k];
+        values.clear();
+        values.extend(ok.iter().map(|r| r.probes[k].value));
+        values.sort_by(f64::total_cmp);
+        let (p05, p95) = errors.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
+            let key = (o.station.clone(), o.quantity.to_string());
+            let factors = &factors[o.station.as_str()];
+            centres.clear();
+            for s in series.iter().filter_map(|d| d.series.get(&key)) {
+                let (first, last) = (s.times[0], s.times[s.times.len() - 1]);
+                centres.extend(factors.iter().filter_map(|f| s.at((o.time_s * f).clamp(first, last))));
+            }
+            let range = physical_range(o.quantity, fluid);
+            (
+                fmt_num(mixture_quantile(&centres, sigma, range, 0.05)),
+                fmt_num(mixture_quantile(&centres, sigma, range, 0.95)),
+            )
+        });
+        bands.row([
+            &fmt_num(o.time_s),
+            o.station.as_str(),
+            &fmt_num(o.x_m),
+            o.quantity,
+            &fmt_num(quantile(&values, 0.05)),
+            &fmt_num(quantile(&values, 0.5)),
+            &fmt_num(quantile(&values, 0.95)),
+            &p05,
+            &p95,
+        ])?;
+    }
+    bands.finish()
+}
+
 /// Runs the prediction.
 pub fn run(args: &PredictArgs) -> Result<()> {
     if args.samples == 0 {
@@ -445,47 +493,7 @@ pub fn run(args: &PredictArgs) -> Result<()> {
     if ok.iter().any(|o| o.probes.len() != n_rows) {
         bail!("internal error: runs recorded different numbers of probe values");
     }
-    let mut bands = CsvText::new(["time_s", "station", "x_m", "quantity", "q05", "q50", "q95", "p05", "p95"])?;
-    // one set of clock factors per station (not per probe row)
-    let mut factors: BTreeMap<&str, Vec<f64>> = BTreeMap::new();
-    for o in &ok[0].probes {
-        factors.entry(o.station.as_str()).or_insert_with(|| errors.clock_factors(&o.station));
-    }
-    let series: Vec<Dataset> = ok.iter().map(|o| probes_dataset(&o.probes)).collect();
-    let mut values = Vec::with_capacity(ok.len());
-    let mut centres = Vec::with_capacity(ok.len() * TIMING_NODES);
-    for k in 0..n_rows {
-        let o = &ok[0].probes[k];
-        values.clear();
-        values.extend(ok.iter().map(|r| r.probes[k].value));
-        values.sort_by(f64::total_cmp);
-        let (p05, p95) = errors.get(&o.station, o.quantity).map_or((String::new(), String::new()), |sigma| {
-            let key = (o.station.clone(), o.quantity.to_string());
-            let factors = &factors[o.station.as_str()];
-            centres.clear();
-            for s in series.iter().filter_map(|d| d.series.get(&key)) {
-                let (first, last) = (s.times[0], s.times[s.times.len() - 1]);
-                centres.extend(factors.iter().filter_map(|f| s.at((o.time_s * f).clamp(first, last))));
-            }
-            let range = physical_range(o.quantity, table.constants());
-            (
-                fmt_num(mixture_quantile(&centres, sigma, range, 0.05)),
-                fmt_num(mixture_quantile(&centres, sigma, range, 0.95)),
-            )
-        });
-        bands.row([
-            &fmt_num(o.time_s),
-            o.station.as_str(),
-            &fmt_num(o.x_m),
-            o.quantity,
-            &fmt_num(quantile(&values, 0.05)),
-            &fmt_num(quantile(&values, 0.5)),
-            &fmt_num(quantile(&values, 0.95)),
-            &p05,
-            &p95,
-        ])?;
-    }
-    let bands = bands.finish()?;
+    let bands = bands_csv(&ok, &errors, table.constants())?;
     let mut chill = serde_json::Map::new();
     let stations: Vec<String> = case.stations.iter().map(|s| s.name.clone()).collect();
     for st in &stations {
