@@ -460,7 +460,7 @@ fn predict_left_out(
             value_label: "wall temperature (K)".into(),
             value_scale: 1.0,
             band_label: format!(
-                "5–95 % posterior predictive of a measurement ({} runs, the refit's clock and shape errors)",
+                "5–95 % band of a measurement ({} runs; the refit's clock and shape errors)",
                 args.samples
             ),
             panels,

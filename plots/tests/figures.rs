@@ -167,3 +167,33 @@ fn empty_and_degenerate_inputs_still_draw() {
     });
     assert!(nan.svg().is_ok());
 }
+
+/// The `<rect x=.. y=.. width=.. height=..>` elements of an SVG, as numbers.
+fn rects(svg: &str) -> Vec<[f64; 4]> {
+    let attr = |tag: &str, name: &str| -> Option<f64> {
+        let at = tag.find(&format!(" {name}=\""))? + name.len() + 3;
+        tag[at..].split('"').next()?.parse().ok()
+    };
+    svg.split("<rect")
+        .skip(1)
+        .filter_map(|t| Some([attr(t, "x")?, attr(t, "y")?, attr(t, "width")?, attr(t, "height")?]))
+        .collect()
+}
+
+#[test]
+fn a_legend_too_long_for_its_panel_shrinks_and_keeps_its_swatches_inside() {
+    let Plot::Fit(mut fit) = all().remove(5) else { panic!("figure 5 is the fit") };
+    fit.band_label = "5–95 % band of a measurement with a label far longer than a quarter-width panel holds: \
+                      the runs, the clock error and the misfit"
+        .into();
+    fit.panels.push(fit.panels[0].clone());
+    let svg = Plot::Fit(fit).svg().unwrap();
+    let all = rects(&svg);
+    // the legend's box: the bordered rectangle drawn twice (background, border) at one place
+    let boxes: Vec<&[f64; 4]> = all.iter().filter(|r| all.iter().filter(|s| s == r).count() == 2).collect();
+    let b = boxes.first().expect("a legend box");
+    // the band's swatch: 22 px wide and 12 high, inside the box
+    let swatch = all.iter().find(|r| r[3] == 12.0).expect("the band's swatch");
+    assert_eq!(swatch[2], 22.0, "the swatch keeps its width: {swatch:?}");
+    assert!(swatch[0] > b[0] && swatch[0] + swatch[2] < b[0] + b[2], "swatch {swatch:?} inside the box {b:?}");
+}
