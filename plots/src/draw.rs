@@ -28,6 +28,8 @@ const FAMILY: &str = "sans-serif";
 const TITLE_PX: f64 = 26.0;
 /// Width of a legend entry's swatch column, px (the swatches are 22 px wide).
 const LEGEND_SWATCH_PX: u32 = 30;
+/// A legend's margin around its entries, px.
+const LEGEND_MARGIN_PX: u32 = 8;
 
 /// Colour-blind-friendly categorical colours (Okabe–Ito, with black last).
 const PALETTE: [RGBColor; 8] = [
@@ -212,9 +214,9 @@ where
     mesh.draw().map_err(err)?;
     let legend_line =
         |c: RGBColor, w: u32| move |(x, y): (i32, i32)| PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(w));
-    let mut labelled = false;
-    // the longest legend label, to fit the legend's font to the panel
-    let mut label_chars = 0;
+    // the longest legend label, if any, to fit the legend's font to the panel
+    let mut label_chars: Option<usize> = None;
+    let mut note_label = |l: &str| label_chars = Some(label_chars.unwrap_or(0).max(l.chars().count()));
     for layer in &p.layers {
         match layer {
             Layer::Band { pts, colour, label } => {
@@ -226,8 +228,7 @@ where
                 let c = *colour;
                 let a = chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.25).filled()))).map_err(err)?;
                 if let Some(l) = label {
-                    labelled = true;
-                    label_chars = label_chars.max(l.chars().count());
+                    note_label(l);
                     a.label(l.as_str())
                         .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.25).filled()));
                 }
@@ -242,8 +243,7 @@ where
                     )
                     .map_err(err)?;
                 if let Some(l) = label {
-                    labelled = true;
-                    label_chars = label_chars.max(l.chars().count());
+                    note_label(l);
                     a.label(l.as_str())
                         .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 22, y + 6)], c.mix(0.75).filled()));
                 }
@@ -252,8 +252,7 @@ where
                 let (c, w) = (*colour, *width);
                 let a = chart.draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(w))).map_err(err)?;
                 if let Some(l) = label {
-                    labelled = true;
-                    label_chars = label_chars.max(l.chars().count());
+                    note_label(l);
                     a.label(l.as_str()).legend(legend_line(c, w));
                 }
             }
@@ -262,8 +261,7 @@ where
                 let drawn =
                     chart.draw_series(pts.iter().map(|&pt| Circle::new(pt, s, c.mix(a).filled()))).map_err(err)?;
                 if let Some(l) = label {
-                    labelled = true;
-                    label_chars = label_chars.max(l.chars().count());
+                    note_label(l);
                     drawn.label(l.as_str()).legend(move |(x, y)| Circle::new((x + 11, y), s.max(3), c.filled()));
                 }
             }
@@ -273,13 +271,14 @@ where
             }
         }
     }
-    if labelled && let Some(pos) = p.legend.clone() {
+    if let (Some(chars), Some(pos)) = (label_chars, p.legend.clone()) {
         // a legend wider than the plot is pinned to its left edge with its swatches outside it:
         // its font shrinks to fit instead (DejaVu Sans averages under 0.6 em per character), as
         // the figure's title does
         let width = f64::from(chart.plotting_area().dim_in_pixel().0);
-        let room = width - f64::from(LEGEND_SWATCH_PX) - 2.0 * 8.0 - 2.0 * 5.0;
-        let legend_px = f.min(room / (0.6 * label_chars.max(1) as f64)).max(7.0);
+        // the swatches, the legend's margins and plotters' 5 px offset from the plot's edge
+        let room = width - f64::from(LEGEND_SWATCH_PX + 2 * LEGEND_MARGIN_PX + 2 * 5);
+        let legend_px = f.min(room / (0.6 * chars.max(1) as f64)).max(7.0);
         chart
             .configure_series_labels()
             .position(pos)
@@ -287,7 +286,7 @@ where
             .label_font((FAMILY, legend_px))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(0, 0, 0).mix(0.4))
-            .margin(8)
+            .margin(LEGEND_MARGIN_PX)
             .draw()
             .map_err(err)?;
     }
