@@ -152,3 +152,29 @@ fn the_example_apparatus_calibration_is_valid() {
         spec.check_case_fields(name, &case, name).unwrap();
     }
 }
+
+/// Every example calibration file reads and makes its parameter space, and the case and data
+/// files its experiments name are beside it.
+#[test]
+fn every_example_calibration_reads_and_names_files_that_exist() {
+    use cryofit_calib::config::CalibrationSpec;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/nbs");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if !(name.starts_with("calibrate-") && name.ends_with(".toml")) {
+            continue;
+        }
+        let spec = CalibrationSpec::from_toml(&std::fs::read_to_string(&path).unwrap(), &name)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        spec.space().unwrap_or_else(|e| panic!("{name}: {e}"));
+        for e in &spec.experiments {
+            for file in [&e.case, &e.data] {
+                assert!(dir.join(file).is_file(), "{name}: {file} is not beside it");
+            }
+        }
+        seen += 1;
+    }
+    assert!(seen >= 8, "only {seen} example calibrations found in {}", dir.display());
+}
