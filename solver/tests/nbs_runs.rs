@@ -32,7 +32,8 @@ const RUNS: [(&str, f64); 3] = [("saturated-2.5atm", 245.0), ("saturated-3.4atm"
 /// surge reaches, they take 16 089 / 10 628 / 20 807 (a step count moves by several per cent
 /// with any change that touches the subcooled run's surges). With the valve's form loss
 /// linearised about the junction's implicit speed rather than its old one, 16 351 / 11 075 /
-/// 21 393.
+/// 21 393. With the drive pressure read as the dewar's absolute pressure (the case files' reading
+/// since 2026-11-28; the dewars 83 087 Pa lower), 13 168 / 10 902 / 16 781.
 /// A run above the limit shows where its steps went in `summary.step_limited_by`.
 const MAX_STEPS: u64 = 23_500;
 
