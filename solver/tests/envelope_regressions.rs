@@ -127,3 +127,34 @@ fn saturated_nitrogen_at_11_atm_keeps_its_energy() {
     assert!(s.trace_adjustment_j <= 100.0, "trace adjustments {} J", s.trace_adjustment_j);
     assert!(s.energy_balance_error <= 1e-3, "energy balance error {}", s.energy_balance_error);
 }
+
+/// Saturated methane with `examples/nbs/calibrated.toml` (Chisholm's C = 0): after its
+/// chilldown the line carries a flashing flow that left the exit at 140 m/s, above its mixture's
+/// speed of sound (under 90 m/s); without a critical-flow limit the exit flickered from step to
+/// step (65 000 steps from 40 to 80 s) and the run's energy residual reached 1.6 %. The exit now
+/// chokes: its weighted velocity stays at the mixture's speed of sound.
+#[test]
+fn a_flashing_discharge_chokes_at_the_exit() {
+    let methane = fluids::embedded("methane").unwrap();
+    let t_sat = methane.saturation(1_197_662.0).unwrap().t_sat;
+    let case = envelope_11atm("methane", t_sat, 90.0);
+    let path = format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR"));
+    let table: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let mut set = ParameterSet::new();
+    for (name, value) in table {
+        set.set(&name, value.as_float().unwrap()).unwrap();
+    }
+    let out = run(&case, &set);
+    let s = &out.summary;
+    assert!(s.steps < 10_000, "{} steps", s.steps);
+    assert!(s.energy_balance_error <= 1e-3, "energy balance error {}", s.energy_balance_error);
+    let f = &out.final_state;
+    let (n, c) = (f.v_g.len() - 1, f.v_g.len() - 2);
+    let (a_g, a_l) = (f.alpha[c], 1.0 - f.alpha[c]);
+    let (rho_g, rho_l) = (f.gas[c].rho, f.liquid[c].rho);
+    let weighted = (a_g * rho_l * f.v_g[n] + a_l * rho_g * f.v_l[n]) / (a_g * rho_l + a_l * rho_g);
+    let speed = fluids::frozen_mixture_sound_speed(f.alpha[c], &f.gas[c], &f.liquid[c]).unwrap();
+    assert!(a_l > 0.01, "the exit cell still holds liquid: α = {}", f.alpha[c]);
+    assert!(weighted <= 1.02 * speed, "exit at {weighted} m/s, speed of sound {speed} m/s");
+    assert!(weighted >= 0.9 * speed, "the exit is choked: {weighted} m/s against {speed} m/s");
+}

@@ -23,8 +23,10 @@
 //! A query outside a table is an error naming the fluid and the state, never NaN.
 
 mod hermite;
+mod sound;
 mod table;
 
+pub use sound::frozen_mixture_sound_speed;
 pub use table::{FluidConstants, FluidTable, LimiterReport, PhaseProps, Saturation, StabilityViolation, StableState};
 
 use std::fmt;

@@ -45,6 +45,7 @@
 //! | `pressure_equation` | `pressure.rs` | step 1c: per-cell 4×4 systems → tridiagonal pressure rows |
 //! | `pressure_solve` | `pressure.rs` | step 1d: pressure solve and back-substitution |
 //! | `velocity_update` | `pressure.rs` | the new velocities |
+//! | `exit_choke` | `choking.rs` | a choked exit: step 1 again with the exit's resistance |
 //! | `provisional_sources` | `sources.rs` | sources at the provisional state, phase change limited |
 //! | `mass_update` | `conservative.rs` | step 2: conservative phasic masses |
 //! | `dissipated_heat` | `conservative.rs` | the momentum forces' heat with the new velocities |
@@ -61,6 +62,7 @@
 
 mod acceptance;
 mod balance;
+mod choking;
 mod conservative;
 mod momentum;
 mod pressure;
@@ -76,6 +78,7 @@ use crate::model::{BoundaryState, Grid, State};
 
 use acceptance::{all_finite, volume_error_check};
 pub use balance::StepBudget;
+use choking::MAX_CHOKE_PASSES;
 use momentum::JunctionWork;
 use sources::Sources;
 
@@ -242,6 +245,7 @@ impl<'a> Scheme<'a> {
             outlet1: b1[1],
             dp_in: b1[0].p - b0[0].p,
             dp_out: b1[1].p - b0[1].p,
+            choke: 0.0,
         };
         let result = self.phases(&input, &mut w);
         self.work = w;
@@ -253,12 +257,15 @@ impl<'a> Scheme<'a> {
     fn phases(&self, st: &StepInput, w: &mut Work) -> Result<(State, StepReport), Rejection> {
         // step 1: provisional velocities, the pressure equation, the new velocities
         self.old_time_sources(st, w);
-        self.momentum_predictor(st, w);
-        self.pressure_weights(st, w)?;
-        self.provisional_velocities(st, w)?;
-        self.pressure_equation(st, w)?;
-        self.pressure_solve(st, w)?;
-        let mut next = self.velocity_update(st, w);
+        let mut next = self.step_one(st, w)?;
+        // a choked exit: step 1 again with the exit's resistance (`choking.rs`)
+        let mut choked = *st;
+        for _ in 0..MAX_CHOKE_PASSES {
+            let Some(choke) = self.exit_choke(&choked, w, &next) else { break };
+            choked.choke = choke;
+            next = self.step_one(&choked, w)?;
+        }
+        let st = &choked;
         // step 2: the conservative masses and energies with the new velocities
         let mut budget = StepBudget::default();
         self.provisional_sources(st, w);
@@ -292,6 +299,17 @@ impl<'a> Scheme<'a> {
                 budget,
             },
         ))
+    }
+
+    /// Step 1 after the old-time sources: the momentum system, the pressure equation, the new
+    /// velocities.
+    fn step_one(&self, st: &StepInput, w: &mut Work) -> Result<State, Rejection> {
+        self.momentum_predictor(st, w);
+        self.pressure_weights(st, w)?;
+        self.provisional_velocities(st, w)?;
+        self.pressure_equation(st, w)?;
+        self.pressure_solve(st, w)?;
+        Ok(self.velocity_update(st, w))
     }
 
     /// The open fraction of junction `j`'s flow area: a boundary valve's at the ends, 1 inside.
@@ -328,6 +346,9 @@ struct StepInput<'s> {
     dp_in: f64,
     /// The outlet boundary's pressure change over the step, Pa.
     dp_out: f64,
+    /// The choked exit's resistance λ, 1/s: λ α_k ρ_k v_k on each phase at the exit junction
+    /// (0 unless the step's first pass found the exit choked; `choking.rs`).
+    choke: f64,
 }
 
 impl StepInput<'_> {

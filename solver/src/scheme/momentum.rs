@@ -35,7 +35,7 @@ impl Scheme<'_> {
                 continue;
             }
             let s = st.s;
-            let jc = self.junction_coefficients(s, j, st.inlet0, st.outlet0, grav, st.dt);
+            let jc = self.junction_coefficients(st, j, grav);
             let (mut diag, mut rhs) = jc.momentum_block(s.v_g[j], s.v_l[j], st.dt, self.grid.dx_junction(j));
             let gamma = self.phase_change_momentum(st, &w.sources, j, &mut diag, &mut rhs);
             w.mech[j] = self.implicit_convection(st, w, j, &jc, &mut diag);
@@ -213,15 +213,11 @@ impl Scheme<'_> {
         Ok(())
     }
 
-    fn junction_coefficients(
-        &self,
-        s: &State,
-        j: usize,
-        inlet: &BoundaryState,
-        outlet: &BoundaryState,
-        grav: f64,
-        dt: f64,
-    ) -> JunctionCoefficients {
+    /// Junction `j`'s momentum coefficients at the old state (a choked exit's resistance
+    /// `st.choke` included).
+    fn junction_coefficients(&self, st: &StepInput, j: usize, grav: f64) -> JunctionCoefficients {
+        let (s, inlet, outlet, dt) = (st.s, st.inlet0, st.outlet0, st.dt);
+        let choke = if j == st.n { st.choke } else { 0.0 };
         let g = &self.grid;
         let ph = &self.physics;
         let n = g.n;
@@ -267,6 +263,9 @@ impl Scheme<'_> {
             fric_g += loss.coefficient(ar_g, a_g, vg, fric_g);
             fric_l += loss.coefficient(ar_l, a_l, vl, fric_l);
         }
+        // a choked exit's resistance (`choking.rs`), booked like friction
+        fric_g += choke * ar_g;
+        fric_l += choke * ar_l;
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
         let drag_physical = if ph.interphase_drag { cryo::interfacial_drag(&local, cp, &regime) } else { 0.0 };
         // Newton linearisation of the drag force G(v_r) = F(v_r) v_r about the old relative
@@ -343,6 +342,19 @@ impl Scheme<'_> {
             inflow_sign * (if j == 0 { b.p - p_cell } else { p_cell - b.p }) > 0.0
         };
         if inflow && !matches!(b.kind, BoundaryKind::Closed) { bnd(b) } else { c }
+    }
+
+    /// Junction gas fraction and phase densities (α, ρ_g, ρ_l), as the momentum equations use
+    /// them.
+    pub(super) fn junction_densities(
+        &self,
+        s: &State,
+        j: usize,
+        inlet: &BoundaryState,
+        outlet: &BoundaryState,
+    ) -> (f64, f64, f64) {
+        let js = self.junction_state(s, j, inlet, outlet);
+        (js.alpha, js.rho_g, js.rho_l)
     }
 
     /// Junction phase fractions for the pressure-gradient term.
