@@ -314,6 +314,9 @@ fn print_summary(
     );
     println!("  time step {:.3e} … {:.3e} s", s.min_dt_s, s.max_dt_s);
     println!("  mass balance error {:.3e}, energy balance error {:.3e}", s.mass_balance_error, s.energy_balance_error);
+    if s.exit_choked_s > 0.0 {
+        println!("  the exit was choked for {:.1} s (flowing at its mixture's speed of sound)", s.exit_choked_s);
+    }
     let when = |t: Option<f64>| t.map_or_else(|| "not reached".to_string(), |t| format!("{t:.4} s"));
     for (station, chill) in &s.chilldown_time_s {
         let quench = s.quench_arrival_s.get(station).copied().flatten();

@@ -84,6 +84,8 @@ fn envelope_reports_every_run_of_a_small_grid() {
                     assert!(finite(run, "energy_balance_error") >= 0.0, "{label}: {run}");
                     finite(run, "energy_balance_residual_j");
                     finite(run, "wall_heat_j");
+                    let choked = finite(run, "exit_choked_s");
+                    assert!((0.0..=20.0).contains(&choked), "{label}: choked for {choked} s");
                     assert!(run["chilldown_ts4_s"].is_null() || run["chilldown_ts4_s"].as_f64().is_some(), "{run}");
                     assert!(!run["step_limited_by"].as_object().unwrap().is_empty(), "{label}: {run}");
                 } else {

@@ -148,6 +148,7 @@ fn a_flashing_discharge_chokes_at_the_exit() {
     let s = &out.summary;
     assert!(s.steps < 10_000, "{} steps", s.steps);
     assert!(s.energy_balance_error <= 1e-3, "energy balance error {}", s.energy_balance_error);
+    assert!(s.exit_choked_s > 30.0, "the exit was choked for {} s", s.exit_choked_s);
     let f = &out.final_state;
     let (n, c) = (f.v_g.len() - 1, f.v_g.len() - 2);
     let (a_g, a_l) = (f.alpha[c], 1.0 - f.alpha[c]);

@@ -192,6 +192,8 @@ struct RunReport {
     energy_balance_error: Option<f64>,
     energy_balance_residual_j: Option<f64>,
     wall_heat_j: Option<f64>,
+    /// Simulated time during which the line's exit was choked, s.
+    exit_choked_s: Option<f64>,
     /// Which controlled variable came closest to its limit in accepted steps, and how often.
     step_limited_by: BTreeMap<String, u64>,
     /// Completed with trace adjustments and energy balance error within the targets.
@@ -448,6 +450,7 @@ fn run_one(plan: &Plan, table: &FluidTable, params: &ParameterSet) -> RunReport 
         energy_balance_error: None,
         energy_balance_residual_j: None,
         wall_heat_j: None,
+        exit_choked_s: None,
         step_limited_by: BTreeMap::new(),
         meets_targets: false,
     };
@@ -490,6 +493,7 @@ fn fill_completed(report: &mut RunReport, s: Summary) {
     report.energy_balance_error = Some(s.energy_balance_error);
     report.energy_balance_residual_j = Some(s.energy_balance_residual_j);
     report.wall_heat_j = Some(s.wall_heat_j);
+    report.exit_choked_s = Some(s.exit_choked_s);
     report.meets_targets =
         s.trace_adjustment_j <= TARGET_TRACE_ADJUSTMENT_J && s.energy_balance_error <= TARGET_ENERGY_BALANCE_ERROR;
     report.step_limited_by = s.step_limited_by;
@@ -776,6 +780,7 @@ mod tests {
             energy_balance_error: Some(energy),
             energy_balance_residual_j: Some(0.0),
             wall_heat_j: Some(1e6),
+            exit_choked_s: Some(0.0),
             step_limited_by: BTreeMap::new(),
             meets_targets: trace_j <= TARGET_TRACE_ADJUSTMENT_J && energy <= TARGET_ENERGY_BALANCE_ERROR,
         }

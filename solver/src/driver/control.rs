@@ -81,6 +81,8 @@ pub(super) struct StepStatistics {
     pub(super) rejection_causes: BTreeMap<String, u64>,
     /// The controlled variable that came closest to its limit in accepted steps, and how often.
     pub(super) step_limited_by: BTreeMap<String, u64>,
+    /// Simulated time of the accepted steps in which the line's exit was choked, s.
+    pub(super) exit_choked_s: f64,
 }
 
 impl StepController {
@@ -101,6 +103,7 @@ impl StepController {
                 max_dt: 0.0,
                 rejection_causes: BTreeMap::new(),
                 step_limited_by: BTreeMap::new(),
+                exit_choked_s: 0.0,
             },
         }
     }
@@ -139,6 +142,9 @@ impl StepController {
         stats.max_dt = stats.max_dt.max(h);
         if !report.limiting.is_empty() {
             *stats.step_limited_by.entry(report.limiting.to_string()).or_default() += 1;
+        }
+        if report.exit_choked {
+            stats.exit_choked_s += h;
         }
         if report.change_ratio < c.easy_ratio {
             self.easy_steps += 1;

@@ -143,6 +143,9 @@ pub struct Summary {
     pub rejection_causes: BTreeMap<String, u64>,
     /// Which controlled variable came closest to its limit in accepted steps, and how often.
     pub step_limited_by: BTreeMap<String, u64>,
+    /// Simulated time during which the line's exit was choked (the fluid leaving at the speed
+    /// of sound of its mixture, whatever the pressure beyond), s.
+    pub exit_choked_s: f64,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,
     /// First time the wall falls below 150 K, per station.
@@ -366,6 +369,7 @@ pub fn run(
             dissipation_j: balances.dissipation_j,
             rejection_causes: steps.rejection_causes,
             step_limited_by: steps.step_limited_by,
+            exit_choked_s: steps.exit_choked_s,
             chilldown_time_s: arrivals.chilldown,
             quench_arrival_s: arrivals.quench,
             inlet_liquid_temperature_k: arrivals.inlet_liquid_temperature_k,

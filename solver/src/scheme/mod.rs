@@ -158,6 +158,8 @@ pub struct StepReport {
     pub limiting: &'static str,
     /// Cell (or junction, for a velocity) of [`StepReport::limiting`].
     pub limiting_index: usize,
+    /// Whether the line's exit was choked in the step (`choking.rs`).
+    pub exit_choked: bool,
     /// Budget terms.
     pub budget: StepBudget,
 }
@@ -296,6 +298,7 @@ impl<'a> Scheme<'a> {
                 max_volume_error: max_verr,
                 limiting: change.worst.variable,
                 limiting_index: change.worst.cell,
+                exit_choked: st.choke > 0.0,
                 budget,
             },
         ))
