@@ -47,7 +47,7 @@ use crate::model::State;
 impl Scheme<'_> {
     /// The exit's critical speed a (m/s) and the weights (w_g, w_l) of its criterion, from the
     /// exit cell's old state; `None` where the exit is not checked (no pressure-type outlet, a
-    /// liquid-only or near-critical exit cell, a speed the tables do not give).
+    /// liquid-only exit cell, a speed the tables' derivatives do not give).
     pub(super) fn exit_critical_speed(&self, st: &StepInput) -> Option<(f64, (f64, f64))> {
         if !matches!(st.outlet1.kind, BoundaryKind::Pressure | BoundaryKind::Reservoir) {
             return None;
