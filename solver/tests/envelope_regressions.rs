@@ -19,8 +19,12 @@ fn nbs(stem: &str) -> Case {
 }
 
 fn params(file: &str) -> ParameterSet {
-    let path = format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap();
+    params_at(&format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR")))
+}
+
+/// A `name = number` parameter file.
+fn params_at(path: &str) -> ParameterSet {
+    let text = std::fs::read_to_string(path).unwrap();
     let table: toml::Table = toml::from_str(&text).unwrap();
     let mut set = ParameterSet::new();
     for (name, value) in table {
@@ -138,12 +142,7 @@ fn a_flashing_discharge_chokes_at_the_exit() {
     let methane = fluids::embedded("methane").unwrap();
     let t_sat = methane.saturation(1_197_662.0).unwrap().t_sat;
     let case = envelope_11atm("methane", t_sat, 90.0);
-    let path = format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR"));
-    let table: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    let mut set = ParameterSet::new();
-    for (name, value) in table {
-        set.set(&name, value.as_float().unwrap()).unwrap();
-    }
+    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     let s = &out.summary;
     assert!(s.steps < 10_000, "{} steps", s.steps);

@@ -45,10 +45,10 @@ use crate::fluids::frozen_mixture_sound_speed;
 use crate::model::State;
 
 impl Scheme<'_> {
-    /// The exit's critical speed a (m/s) and the weights (w_g, w_l) of its criterion, from the
-    /// exit cell's old state; `None` where the exit is not checked (no pressure-type outlet, a
-    /// liquid-only exit cell, a speed the tables' derivatives do not give).
-    pub(super) fn exit_critical_speed(&self, st: &StepInput) -> Option<(f64, (f64, f64))> {
+    /// The exit's choking criterion for the step, from the old state; `None` where the exit is
+    /// not checked (no pressure-type outlet, a liquid-only exit cell, a speed the tables'
+    /// derivatives do not give).
+    pub(super) fn exit_criterion(&self, st: &StepInput) -> Option<ExitCriterion> {
         if !matches!(st.outlet1.kind, BoundaryKind::Pressure | BoundaryKind::Reservoir) {
             return None;
         }
@@ -67,7 +67,12 @@ impl Scheme<'_> {
         if !(den > 0.0 && speed > 0.0) {
             return None;
         }
-        Some((speed, (a_g * rho_l / den, a_l * rho_g / den)))
+        let (a_j, rho_gj, rho_lj) = self.junction_densities(s, st.n, st.inlet0, st.outlet0);
+        Some(ExitCriterion {
+            speed,
+            weights: (a_g * rho_l / den, a_l * rho_g / den),
+            mass: Matrix2::new(a_j * rho_gj, 0.0, 0.0, (1.0 - a_j) * rho_lj),
+        })
     }
 
     /// The resistance λ (1/s) for another pass, if the last pass's new exit velocities
@@ -78,12 +83,9 @@ impl Scheme<'_> {
     /// included), the velocities with a resistance λ are (D + (λ − λ₀) M)⁻¹ R,
     /// M = diag(α_g ρ_g, α_l ρ_l) at the junction; λ is found by bisection so that their weighted
     /// velocity is the critical speed.
-    pub(super) fn exit_choke(&self, st: &StepInput, w: &Work, next: &State) -> Option<f64> {
+    pub(super) fn exit_choke(&self, exit: &ExitCriterion, st: &StepInput, w: &Work, next: &State) -> Option<f64> {
         let n = st.n;
-        if st.prescribed(n).is_some() {
-            return None;
-        }
-        let (speed, (wg, wl)) = self.exit_critical_speed(st)?;
+        let (speed, (wg, wl), m) = (exit.speed, exit.weights, exit.mass);
         let v = Vector2::new(next.v_g[n], next.v_l[n]);
         let criterion = |v: &Vector2<f64>| wg * v[0] + wl * v[1];
         let over = criterion(&v) - speed * (1.0 + CHOKE_TOLERANCE);
@@ -92,8 +94,6 @@ impl Scheme<'_> {
         }
         let d = w.diag[n];
         let r = d * v;
-        let (a_g, rho_g, rho_l) = self.junction_densities(st.s, n, st.inlet0, st.outlet0);
-        let m = Matrix2::new(a_g * rho_g, 0.0, 0.0, (1.0 - a_g) * rho_l);
         let lambda0 = st.choke;
         let excess = |lambda: f64| -> Option<f64> {
             let v = (d + m * (lambda - lambda0)).try_inverse()? * r;
@@ -123,6 +123,19 @@ impl Scheme<'_> {
         }
         Some(hi)
     }
+}
+
+/// The exit's choking criterion over a step, from the old state
+/// ([`Scheme::exit_criterion`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ExitCriterion {
+    /// The critical speed a, m/s.
+    speed: f64,
+    /// The weights (w_g, w_l) of the criterion's velocity w_g v_g + w_l v_l.
+    weights: (f64, f64),
+    /// M = diag(α_g ρ_g, α_l ρ_l) of the exit junction: the resistance λ M of its momentum
+    /// equations.
+    mass: Matrix2<f64>,
 }
 
 /// Bisection steps for the resistance λ.

@@ -262,10 +262,12 @@ impl<'a> Scheme<'a> {
         let mut next = self.step_one(st, w)?;
         // a choked exit: step 1 again with the exit's resistance (`choking.rs`)
         let mut choked = *st;
-        for _ in 0..MAX_CHOKE_PASSES {
-            let Some(choke) = self.exit_choke(&choked, w, &next) else { break };
-            choked.choke = choke;
-            next = self.step_one(&choked, w)?;
+        if let Some(exit) = self.exit_criterion(st) {
+            for _ in 0..MAX_CHOKE_PASSES {
+                let Some(choke) = self.exit_choke(&exit, &choked, w, &next) else { break };
+                choked.choke = choke;
+                next = self.step_one(&choked, w)?;
+            }
         }
         let st = &choked;
         // step 2: the conservative masses and energies with the new velocities
