@@ -1,7 +1,7 @@
 //! Step 2: the unexpanded (conservative) phasic mass and energy equations with the new
 //! velocities and new-time donors, the heat and work they book, and the wall's energy.
 
-use super::momentum::booked_heat;
+use super::momentum::{booked_heat, time_step_loss};
 use super::{Rejection, Scheme, StepBudget, StepInput, Work, boundary_conserved};
 use crate::fluids::{Phase, PhaseProps};
 use crate::linalg;
@@ -69,7 +69,8 @@ impl Scheme<'_> {
         for j in 0..st.n + 1 {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             let mass = [w.mass_g.as_slice(), w.mass_l.as_slice()];
-            w.junction_heat[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j));
+            w.junction_heat[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j))
+                + time_step_loss(&w.mech[j], j, [st.s.v_g.as_slice(), st.s.v_l.as_slice()], v1, st.dt);
             // Decision: the kinetic energy of the mass that changes phase is booked where the
             // two equations disagree about it. The phase-change momentum's work at junction j,
             // −(Γ_j/2)(v_g² − v_l²) V_j, takes the mean Γ_j of the junction's cells, while the
