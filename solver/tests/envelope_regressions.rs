@@ -132,6 +132,16 @@ fn saturated_nitrogen_at_11_atm_keeps_its_energy() {
     assert!(s.energy_balance_error <= 1e-3, "energy balance error {}", s.energy_balance_error);
 }
 
+/// The envelope's line with `fluid` saturated at 11 atm (the liquid at T_sat of the dewar), run
+/// for `end_s` with the parameters of `examples/nbs/calibrated.toml`.
+fn saturated_11atm_calibrated(fluid: &str, end_s: f64) -> driver::Output {
+    let table = fluids::embedded(fluid).unwrap();
+    let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
+    let case = envelope_11atm(fluid, t_sat, end_s);
+    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    run(&case, &set)
+}
+
 /// Saturated methane with `examples/nbs/calibrated.toml` (Chisholm's C = 0): after its
 /// chilldown the line carries a flashing flow that left the exit at 140 m/s, above its mixture's
 /// speed of sound (under 90 m/s); without a critical-flow limit the exit flickered from step to
@@ -139,11 +149,7 @@ fn saturated_nitrogen_at_11_atm_keeps_its_energy() {
 /// chokes: its weighted velocity stays at the mixture's speed of sound.
 #[test]
 fn a_flashing_discharge_chokes_at_the_exit() {
-    let methane = fluids::embedded("methane").unwrap();
-    let t_sat = methane.saturation(1_197_662.0).unwrap().t_sat;
-    let case = envelope_11atm("methane", t_sat, 90.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
-    let out = run(&case, &set);
+    let out = saturated_11atm_calibrated("methane", 90.0);
     let s = &out.summary;
     assert!(s.steps < 10_000, "{} steps", s.steps);
     assert!(s.energy_balance_error <= 1e-3, "energy balance error {}", s.energy_balance_error);
@@ -166,11 +172,7 @@ fn a_flashing_discharge_chokes_at_the_exit() {
 /// Booked, 0.25 kJ.
 #[test]
 fn a_flashing_outflow_keeps_the_kinetic_energy_its_steps_lose() {
-    let hydrogen = fluids::embedded("parahydrogen").unwrap();
-    let t_sat = hydrogen.saturation(1_197_662.0).unwrap().t_sat;
-    let case = envelope_11atm("parahydrogen", t_sat, 60.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
-    let out = run(&case, &set);
+    let out = saturated_11atm_calibrated("parahydrogen", 60.0);
     let s = &out.summary;
     assert!(s.simulated_time_s >= 60.0 - 1e-9);
     assert!(s.energy_balance_error <= 3e-4, "energy balance error {}", s.energy_balance_error);
