@@ -132,7 +132,15 @@ impl RunObserver for ProfileRecorder<'_> {
 
 /// The chilldown time (the wall below the inlet liquid temperature + [`CHILLDOWN_MARGIN_K`])
 /// and the quench-front arrival (the wall below [`QUENCH_TEMPERATURE_K`]) at each station: the
-/// first time level at which its wall temperature is below the threshold.
+/// time at which its wall temperature first falls below the threshold, interpolated linearly
+/// within the step that crosses it.
+///
+/// Decision: the crossing is interpolated, not taken at the end of the step. The steps near a
+/// station's chilldown are a third of a second to half a second long (the Courant and
+/// largest-step limits), and the end of the crossing step moved the reported time by up to a
+/// whole step whenever a perturbation shifted the step sequence: a jump no smaller
+/// perturbation removes, which the one-ulp chaos measurement (VALIDATION.md) and a
+/// calibration's chilldown errors inherited.
 #[derive(Debug)]
 pub(super) struct FrontArrivals<'a> {
     stations: &'a [Station],
@@ -142,6 +150,9 @@ pub(super) struct FrontArrivals<'a> {
     pub(super) chilldown: BTreeMap<String, Option<f64>>,
     /// Quench-front arrival per station, s (`None`: not reached).
     pub(super) quench: BTreeMap<String, Option<f64>>,
+    /// Per station, the time and wall temperature of the last state seen (`None` before the
+    /// first).
+    last: Vec<Option<(f64, f64)>>,
 }
 
 impl<'a> FrontArrivals<'a> {
@@ -149,20 +160,38 @@ impl<'a> FrontArrivals<'a> {
     /// `inlet_liquid_temperature_k`.
     pub(super) fn new(stations: &'a [Station], inlet_liquid_temperature_k: f64) -> Self {
         let none = || stations.iter().map(|s| (s.name.clone(), None)).collect();
-        Self { stations, inlet_liquid_temperature_k, chilldown: none(), quench: none() }
+        Self {
+            stations,
+            inlet_liquid_temperature_k,
+            chilldown: none(),
+            quench: none(),
+            last: vec![None; stations.len()],
+        }
+    }
+}
+
+/// When a wall temperature going from `before` = (time, T) to `now` = (time, T) first falls
+/// below `threshold`, linear in time within the step; `now`'s time where there is no step before
+/// it (the first state) or the temperature did not change.
+fn crossing(before: Option<(f64, f64)>, now: (f64, f64), threshold: f64) -> f64 {
+    match before {
+        Some((t0, w0)) if w0 >= threshold && w0 > now.1 => t0 + (now.0 - t0) * (w0 - threshold) / (w0 - now.1),
+        _ => now.0,
     }
 }
 
 impl RunObserver for FrontArrivals<'_> {
     fn on_state(&mut self, s: &State) {
-        for st in self.stations {
+        for (st, last) in self.stations.iter().zip(self.last.iter_mut()) {
             let tw = st.cell_value(&s.t_w);
-            if self.chilldown[&st.name].is_none() && tw < self.inlet_liquid_temperature_k + CHILLDOWN_MARGIN_K {
-                self.chilldown.insert(st.name.clone(), Some(s.time));
+            let chilled = self.inlet_liquid_temperature_k + CHILLDOWN_MARGIN_K;
+            if self.chilldown[&st.name].is_none() && tw < chilled {
+                self.chilldown.insert(st.name.clone(), Some(crossing(*last, (s.time, tw), chilled)));
             }
             if self.quench[&st.name].is_none() && tw < QUENCH_TEMPERATURE_K {
-                self.quench.insert(st.name.clone(), Some(s.time));
+                self.quench.insert(st.name.clone(), Some(crossing(*last, (s.time, tw), QUENCH_TEMPERATURE_K)));
             }
+            *last = Some((s.time, tw));
         }
     }
 }
@@ -430,5 +459,23 @@ fn record_profile(out: &mut Vec<ProfilePoint>, s: &State, g: &Grid) {
         let x = g.x_junction[j];
         out.push(ProfilePoint { time_s: s.time, x_m: x, quantity: "gas_velocity_m_s", value: s.v_g[j] });
         out.push(ProfilePoint { time_s: s.time, x_m: x, quantity: "liquid_velocity_m_s", value: s.v_l[j] });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::crossing;
+
+    #[test]
+    fn a_crossing_is_interpolated_within_its_step() {
+        // 100 K at 10 s to 80 K at 10.5 s: 90 K is crossed half-way
+        assert_eq!(crossing(Some((10.0, 100.0)), (10.5, 80.0), 90.0), 10.25);
+        // a quarter of the way down to 80 K
+        assert_eq!(crossing(Some((10.0, 100.0)), (10.5, 80.0), 95.0), 10.125);
+        // the first state already below: its own time
+        assert_eq!(crossing(None, (0.0, 80.0), 90.0), 0.0);
+        // a step that started below the threshold (a wall rewarmed and cooled again) keeps the
+        // step's end
+        assert_eq!(crossing(Some((10.0, 89.0)), (10.5, 80.0), 90.0), 10.5);
     }
 }
