@@ -108,6 +108,25 @@ fn hydrogen_runs_through_its_critical_pressure() {
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
 }
 
+/// Subcooled para-hydrogen with `examples/nbs/calibrated.toml`: at 11.35 s an inlet cell's
+/// pressure fell to 1.2707 MPa (0.988 of the critical pressure), where the liquid table ends
+/// at 32.81 K and the vapour table at 32.88 K, both at their spinodal margins and on either side
+/// of the saturation temperature (32.86 K): the cell's liquid at 220 kJ/kg lay above its table's
+/// top and its vapour below its table's bottom, and a phase change through the saturated
+/// energies put each phase outside its table again. The run ended there with its steps halved
+/// below 1e-9 s. The cell is now recovered as one mixture, liquid and vapour at their tables'
+/// edges by the lever rule (`scheme::recovery::near_critical_mixture`), and the run goes on.
+#[test]
+fn a_near_critical_cell_is_recovered_as_one_mixture() {
+    // the liquid at the saturation temperature of the local atmosphere, as the envelope takes it
+    let t_sub = fluids::embedded("parahydrogen").unwrap().saturation(83_087.0).unwrap().t_sat;
+    let case = envelope_11atm("parahydrogen", t_sub, 13.0);
+    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let out = run(&case, &set);
+    assert!(out.summary.simulated_time_s >= 13.0 - 1e-9);
+    assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
+}
+
 /// Subcooled nitrogen: the liquid hammer of first contact (a 15 m/s column stopped, ρ c Δv
 /// ≈ 10 MPa) passed the tables' former top pressure of 10 MPa at 3.1 s.
 #[test]

@@ -7,6 +7,10 @@ use super::{
 use crate::fluids::{FluidTable, Phase, PhaseProps};
 use crate::model::{State, clamp_to_phase};
 
+/// Fraction of the critical pressure above which a cell whose phases cannot be recovered is
+/// recovered as one mixture ([`Scheme::near_critical_mixture`]).
+const NEAR_CRITICAL_FRACTION: f64 = 0.98;
+
 impl Scheme<'_> {
     /// The new thermodynamic state from the conserved variables: each cell's new pressure
     /// (checked against the property table), its phase masses (a negative one rejects the step)
@@ -20,11 +24,11 @@ impl Scheme<'_> {
         budget: &mut StepBudget,
     ) -> Result<f64, Rejection> {
         for i in 0..st.n {
-            self.recover_cell(st, w, next, budget, i)?;
+            self.recover_or_mix(st, w, next, budget, i)?;
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
             let (merged, reset, reset_volume) = (w.merged[c], w.reset[c], w.reset_volume[c]);
-            self.recover_cell(st, w, next, budget, c)?;
+            self.recover_or_mix(st, w, next, budget, c)?;
             w.merged[c] |= merged;
             w.reset[c] |= reset;
             // the first recovery's edge change already moved its mass: the volume it made is
@@ -94,6 +98,112 @@ impl Scheme<'_> {
             }
         }
         corrected
+    }
+
+    /// Recovers cell `i` ([`Scheme::recover_cell`]), or, where that fails near the critical
+    /// point, recovers its fluid as one mixture ([`Scheme::near_critical_mixture`]) from the
+    /// conserved masses and energies it started from.
+    fn recover_or_mix(
+        &self,
+        st: &StepInput,
+        w: &mut Work,
+        next: &mut State,
+        budget: &mut StepBudget,
+        i: usize,
+    ) -> Result<(), Rejection> {
+        let conserved = (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]);
+        let booked = *budget;
+        match self.recover_cell(st, w, next, budget, i) {
+            Ok(_) => Ok(()),
+            Err(rejection) => {
+                // near the critical point no shorter step helps: the cell as one mixture
+                (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
+                *budget = booked;
+                self.near_critical_mixture(st, w, next, i).ok_or(rejection)
+            }
+        }
+    }
+
+    /// Cell `i`'s fluid as one mixture in equilibrium at its new pressure, where that pressure
+    /// lies within `NEAR_CRITICAL_FRACTION` of the critical pressure (below it) and the phases
+    /// could not be recovered one by one: the cell's mass and internal energy are shared by the
+    /// lever rule between saturated liquid and vapour where both phase tables hold them, else
+    /// between the liquid table's top and the vapour table's bottom (all liquid or all vapour
+    /// where the mixture's energy lies beyond that end). Mass and energy are kept exactly; the
+    /// volume the mixture then takes is the cell's volume error, which the following steps'
+    /// pressure equations remove. `None` elsewhere or where the tables give no such state.
+    ///
+    /// Decision: near the critical point the phase tables end at their spinodal margins on
+    /// either side of saturation (para-hydrogen at 1.2707 MPa, 0.988 of its critical pressure:
+    /// liquid to 32.81 K, vapour from 32.88 K, saturation at 32.86 K), within 0.5 % of it the
+    /// table gives no saturation, and the energies between the two tables' ends (10–25 kJ/kg
+    /// there) belong to neither. The phase change at a table's edge moves mass at the other
+    /// phase's saturated energy, which lies outside that phase's table there, and the pressure
+    /// correction of a volume error does not shrink with the step: the subcooled para-hydrogen
+    /// line at 11 atm (`examples/nbs/calibrated.toml`) ended with its steps halved below 1e-9 s,
+    /// its inlet cells' liquid above its table's top and vapour below its table's bottom. The
+    /// mixture has a state where its phases do not, and this close to the critical point the
+    /// two phases' densities differ by a factor below 2, so the split moves little volume.
+    fn near_critical_mixture(&self, st: &StepInput, w: &mut Work, next: &mut State, i: usize) -> Option<()> {
+        let (fluid, s) = (self.fluid, st.s);
+        let pc = fluid.constants().p_critical_pa;
+        let p = s.p[i] + w.x[i][0];
+        if !(p >= NEAR_CRITICAL_FRACTION * pc && p < pc) {
+            return None;
+        }
+        let m = next.m_g[i] + next.m_l[i];
+        let u = (next.e_g[i] + next.e_l[i]) / m;
+        // a negative phase mass is the step's error, not the state's (`recover_cell`)
+        if !(m > 0.0 && u.is_finite() && next.m_g[i].min(next.m_l[i]) >= -1e-12 * m) {
+            return None;
+        }
+        let edge = |phase: Phase| -> Option<(f64, PhaseProps)> {
+            let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
+            let margin = 1e-6 * (hi - lo);
+            let t = if phase == Phase::Liquid { hi - margin } else { lo + margin };
+            Some((t, fluid.phase_props(phase, p, t).ok()?))
+        };
+        // the two-phase end states: saturated liquid and vapour where the table gives a
+        // saturation that both phase tables hold, else the tables' edges towards each other
+        let saturated = fluid.saturation(p).ok().filter(|sat| sat.h_lg > 0.0).and_then(|sat| {
+            let liquid = fluid.phase_props(Phase::Liquid, p, sat.t_sat).ok()?;
+            let vapour = fluid.phase_props(Phase::Gas, p, sat.t_sat).ok()?;
+            (liquid.u < vapour.u).then_some(((sat.t_sat, liquid), (sat.t_sat, vapour)))
+        });
+        let ((t_top, top), (t_bottom, bottom)) = match saturated {
+            Some(ends) => ends,
+            None => (edge(Phase::Liquid)?, edge(Phase::Gas)?),
+        };
+        let tg_guess = s.t_g[i] + w.x[i][2];
+        let tl_guess = s.t_l[i] + w.x[i][3];
+        let ((tg, gp, m_gas), (tl, lp, m_liq)) = if u <= top.u {
+            let (t, pr) = fluid.temperature_from_energy(Phase::Liquid, p, u, tl_guess).ok()?;
+            ((t_bottom, bottom, 0.0), (t, pr, m))
+        } else if u >= bottom.u {
+            let (t, pr) = fluid.temperature_from_energy(Phase::Gas, p, u, tg_guess).ok()?;
+            ((t, pr, m), (t_top, top, 0.0))
+        } else {
+            let x = (u - top.u) / (bottom.u - top.u);
+            ((t_bottom, bottom, x * m), (t_top, top, (1.0 - x) * m))
+        };
+        let (ag, al) = (m_gas / gp.rho, m_liq / lp.rho);
+        next.p[i] = p;
+        next.m_g[i] = m_gas;
+        next.m_l[i] = m_liq;
+        next.e_g[i] = m_gas * gp.u;
+        next.e_l[i] = m_liq * lp.u;
+        next.t_g[i] = tg;
+        next.t_l[i] = tl;
+        next.gas[i] = gp;
+        next.liquid[i] = lp;
+        next.alpha[i] = ag / (ag + al);
+        next.volume_error[i] = ag + al - 1.0;
+        next.sat[i] = saturation_or_none(fluid, p);
+        // not a function of the step: exempt from the volume-error check and the change control
+        w.merged[i] = true;
+        w.reset[i] = true;
+        w.reset_volume[i] = next.volume_error[i];
+        Some(())
     }
 
     /// Recovers cell `i` of `next` (see [`Scheme::state_recovery`]), noting in `w.reset` whether
