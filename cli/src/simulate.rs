@@ -314,6 +314,12 @@ fn print_summary(
     );
     println!("  time step {:.3e} … {:.3e} s", s.min_dt_s, s.max_dt_s);
     println!("  mass balance error {:.3e}, energy balance error {:.3e}", s.mass_balance_error, s.energy_balance_error);
+    if s.mixture_recoveries > 0 {
+        println!(
+            "  {} cell state(s) near the critical point recovered as one mixture (mass and energy kept)",
+            s.mixture_recoveries
+        );
+    }
     if s.exit_choked_s > 0.0 {
         println!("  the exit was choked for {:.1} s (flowing at its mixture's speed of sound)", s.exit_choked_s);
     }

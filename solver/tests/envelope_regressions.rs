@@ -125,6 +125,7 @@ fn a_near_critical_cell_is_recovered_as_one_mixture() {
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 13.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
+    assert!(out.summary.mixture_recoveries >= 1, "the mixture recovery was not needed");
 }
 
 /// Subcooled nitrogen: the liquid hammer of first contact (a 15 m/s column stopped, ρ c Δv

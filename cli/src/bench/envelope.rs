@@ -194,6 +194,8 @@ struct RunReport {
     wall_heat_j: Option<f64>,
     /// Simulated time during which the line's exit was choked, s.
     exit_choked_s: Option<f64>,
+    /// Cell states recovered as one near-critical mixture.
+    mixture_recoveries: Option<u64>,
     /// Which controlled variable came closest to its limit in accepted steps, and how often.
     step_limited_by: BTreeMap<String, u64>,
     /// Completed with trace adjustments and energy balance error within the targets.
@@ -451,6 +453,7 @@ fn run_one(plan: &Plan, table: &FluidTable, params: &ParameterSet) -> RunReport 
         energy_balance_residual_j: None,
         wall_heat_j: None,
         exit_choked_s: None,
+        mixture_recoveries: None,
         step_limited_by: BTreeMap::new(),
         meets_targets: false,
     };
@@ -494,6 +497,7 @@ fn fill_completed(report: &mut RunReport, s: Summary) {
     report.energy_balance_residual_j = Some(s.energy_balance_residual_j);
     report.wall_heat_j = Some(s.wall_heat_j);
     report.exit_choked_s = Some(s.exit_choked_s);
+    report.mixture_recoveries = Some(s.mixture_recoveries);
     report.meets_targets =
         s.trace_adjustment_j <= TARGET_TRACE_ADJUSTMENT_J && s.energy_balance_error <= TARGET_ENERGY_BALANCE_ERROR;
     report.step_limited_by = s.step_limited_by;
@@ -781,6 +785,7 @@ mod tests {
             energy_balance_residual_j: Some(0.0),
             wall_heat_j: Some(1e6),
             exit_choked_s: Some(0.0),
+            mixture_recoveries: Some(0),
             step_limited_by: BTreeMap::new(),
             meets_targets: trace_j <= TARGET_TRACE_ADJUSTMENT_J && energy <= TARGET_ENERGY_BALANCE_ERROR,
         }

@@ -83,6 +83,8 @@ pub(super) struct StepStatistics {
     pub(super) step_limited_by: BTreeMap<String, u64>,
     /// Simulated time of the accepted steps in which the line's exit was choked, s.
     pub(super) exit_choked_s: f64,
+    /// Cells recovered as one near-critical mixture, summed over the accepted steps.
+    pub(super) mixture_recoveries: u64,
 }
 
 impl StepController {
@@ -104,6 +106,7 @@ impl StepController {
                 rejection_causes: BTreeMap::new(),
                 step_limited_by: BTreeMap::new(),
                 exit_choked_s: 0.0,
+                mixture_recoveries: 0,
             },
         }
     }
@@ -146,6 +149,7 @@ impl StepController {
         if report.exit_choked {
             stats.exit_choked_s += h;
         }
+        stats.mixture_recoveries += u64::from(report.mixture_cells);
         if report.change_ratio < c.easy_ratio {
             self.easy_steps += 1;
         } else {

@@ -146,6 +146,10 @@ pub struct Summary {
     /// Simulated time during which the line's exit was choked (the fluid leaving at the speed
     /// of sound of its mixture, whatever the pressure beyond), s.
     pub exit_choked_s: f64,
+    /// Cell states recovered as one near-critical mixture because their phases could not be
+    /// recovered one by one (mass and energy kept exactly; `scheme/recovery.rs`), summed over
+    /// the accepted steps.
+    pub mixture_recoveries: u64,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,
     /// First time the wall falls below 150 K, per station.
@@ -370,6 +374,7 @@ pub fn run(
             rejection_causes: steps.rejection_causes,
             step_limited_by: steps.step_limited_by,
             exit_choked_s: steps.exit_choked_s,
+            mixture_recoveries: steps.mixture_recoveries,
             chilldown_time_s: arrivals.chilldown,
             quench_arrival_s: arrivals.quench,
             inlet_liquid_temperature_k: arrivals.inlet_liquid_temperature_k,

@@ -160,6 +160,8 @@ pub struct StepReport {
     pub limiting_index: usize,
     /// Whether the line's exit was choked in the step (`choking.rs`).
     pub exit_choked: bool,
+    /// Cells recovered as one near-critical mixture in the step (`recovery.rs`).
+    pub mixture_cells: u32,
     /// Budget terms.
     pub budget: StepBudget,
 }
@@ -301,6 +303,7 @@ impl<'a> Scheme<'a> {
                 limiting: change.worst.variable,
                 limiting_index: change.worst.cell,
                 exit_choked: st.choke > 0.0,
+                mixture_cells: w.mixture.iter().filter(|&&m| m).count() as u32,
                 budget,
             },
         ))
@@ -439,6 +442,8 @@ struct Work {
     volume_retry_time: f64,
     /// Per cell: the volume error that rejected step made there (0 where within its limit).
     volume_retry: Vec<f64>,
+    /// Per cell: whether it was recovered as one near-critical mixture (`state_recovery`).
+    mixture: Vec<bool>,
     /// Per cell: whether a whole phase went over to the other at its table's edge
     /// (`state_recovery`; exempt from the step's change control, [`Scheme::change_control`]).
     merged: Vec<bool>,
@@ -532,6 +537,7 @@ fn resize(w: &mut Work, n: usize) {
     }
     w.reset.resize(n, false);
     w.merged.resize(n, false);
+    w.mixture.resize(n, false);
     w.volume_retry.resize(n, 0.0);
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);

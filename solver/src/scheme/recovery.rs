@@ -113,6 +113,7 @@ impl Scheme<'_> {
     ) -> Result<(), Rejection> {
         let conserved = (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]);
         let booked = *budget;
+        w.mixture[i] = false;
         match self.recover_cell(st, w, next, budget, i) {
             Ok(_) => Ok(()),
             Err(rejection) => {
@@ -203,6 +204,7 @@ impl Scheme<'_> {
         w.merged[i] = true;
         w.reset[i] = true;
         w.reset_volume[i] = next.volume_error[i];
+        w.mixture[i] = true;
         Some(())
     }
 
