@@ -158,12 +158,6 @@ impl Scheme<'_> {
         if !(m > 0.0 && u.is_finite() && next.m_g[i].min(next.m_l[i]) >= -1e-12 * m) {
             return None;
         }
-        let edge = |phase: Phase| -> Option<(f64, PhaseProps)> {
-            let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
-            let margin = 1e-6 * (hi - lo);
-            let t = if phase == Phase::Liquid { hi - margin } else { lo + margin };
-            Some((t, fluid.phase_props(phase, p, t).ok()?))
-        };
         // the two-phase end states: saturated liquid and vapour where the table gives a
         // saturation that both phase tables hold, else the tables' edges towards each other
         let saturated = fluid.saturation(p).ok().filter(|sat| sat.h_lg > 0.0).and_then(|sat| {
@@ -173,7 +167,7 @@ impl Scheme<'_> {
         });
         let ((t_top, top), (t_bottom, bottom)) = match saturated {
             Some(ends) => ends,
-            None => (edge(Phase::Liquid)?, edge(Phase::Gas)?),
+            None => (table_edge(fluid, Phase::Liquid, p)?, table_edge(fluid, Phase::Gas, p)?),
         };
         let tg_guess = s.t_g[i] + w.x[i][2];
         let tl_guess = s.t_l[i] + w.x[i][3];
@@ -346,6 +340,18 @@ impl Scheme<'_> {
     }
 }
 
+/// The temperature and properties of `phase` at its table's edge towards the other phase at
+/// pressure `p` (the liquid's top, the gas's bottom), a millionth of the table's range inside it.
+fn table_edge(fluid: &FluidTable, phase: Phase, p: f64) -> Option<(f64, PhaseProps)> {
+    let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
+    let margin = 1e-6 * (hi - lo);
+    let t = match phase {
+        Phase::Liquid => hi - margin,
+        Phase::Gas => lo + margin,
+    };
+    Some((t, fluid.phase_props(phase, p, t).ok()?))
+}
+
 /// Whether specific energy `u` of `phase` lies beyond `edge`, its properties at its table's edge
 /// towards the other phase ([`Recovery::edge_towards_other`]).
 fn beyond_edge(phase: Phase, u: f64, edge: &PhaseProps) -> bool {
@@ -464,14 +470,7 @@ impl Recovery<'_> {
     /// at the cell's pressure (the liquid's top, the gas's bottom), a millionth of the table's
     /// range inside it.
     fn edge_towards_other(&self, phase: Phase) -> Option<(f64, PhaseProps)> {
-        let (fluid, p) = (self.fluid, self.p);
-        let (lo, hi) = fluid.phase_temperature_range(phase, p)?;
-        let margin = 1e-6 * (hi - lo);
-        let t = match phase {
-            Phase::Liquid => hi - margin,
-            Phase::Gas => lo + margin,
-        };
-        Some((t, fluid.phase_props(phase, p, t).ok()?))
+        table_edge(self.fluid, phase, self.p)
     }
 
     /// Whether specific energy `u` of `phase` belongs to the other phase at the cell's pressure:
