@@ -434,6 +434,10 @@ struct Work {
     /// Per cell: the part of the new volume error that the cell's resets and edge phase
     /// changes made (`state_recovery`; see [`acceptance::volume_error_check`]).
     reset_volume: Vec<f64>,
+    /// Per cell: the mass the edge phase changes of its recovery moved to the gas (negative: to
+    /// the liquid), kg/m³ (`state_recovery`; its volume is not the step's change of the void
+    /// fraction, [`Scheme::change_control`]).
+    edge_mass: Vec<f64>,
     /// Per cell: the fraction of the old volume error the pressure solve corrects
     /// (`pressure_equation`).
     corrected: Vec<f64>,
@@ -531,6 +535,7 @@ fn resize(w: &mut Work, n: usize) {
         &mut w.sg_used,
         &mut w.sl_used,
         &mut w.reset_volume,
+        &mut w.edge_mass,
         &mut w.corrected,
     ] {
         v.resize(n, 0.0);

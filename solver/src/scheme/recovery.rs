@@ -27,13 +27,14 @@ impl Scheme<'_> {
             self.recover_or_mix(st, w, next, budget, i)?;
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
-            let (merged, reset, reset_volume) = (w.merged[c], w.reset[c], w.reset_volume[c]);
+            let (merged, reset, reset_volume, edge_mass) = (w.merged[c], w.reset[c], w.reset_volume[c], w.edge_mass[c]);
             self.recover_or_mix(st, w, next, budget, c)?;
             w.merged[c] |= merged;
             w.reset[c] |= reset;
             // the first recovery's edge change already moved its mass: the volume it made is
-            // still in the error
+            // still in the error, and its mass in the void fraction
             w.reset_volume[c] += reset_volume;
+            w.edge_mass[c] += edge_mass;
         }
         Ok(next.volume_error.iter().fold(0.0, |m: f64, e| m.max(e.abs())))
     }
@@ -198,6 +199,7 @@ impl Scheme<'_> {
         w.merged[i] = true;
         w.reset[i] = true;
         w.reset_volume[i] = next.volume_error[i];
+        w.edge_mass[i] = 0.0;
         w.mixture[i] = true;
         Some(())
     }
@@ -328,6 +330,7 @@ impl Scheme<'_> {
             reset_volume += al - provisional_l;
         }
         w.reset_volume[i] = reset_volume;
+        w.edge_mass[i] = moved_to_g - moved_to_l;
         w.reset[i] = reset_g || reset_l;
         next.alpha[i] = ag / (ag + al);
         next.t_g[i] = tg;
