@@ -265,7 +265,7 @@ impl Scheme<'_> {
         let (mut tg, mut gp, mut eg, reset_g) =
             match cell.phase(Phase::Gas, mg, next.e_g[i], tg_guess, tl_guess, ml, budget) {
                 Ok(gas) => gas,
-                Err(rejection) => match cell.edge_phase_change(Phase::Gas, mg, next.e_g[i], ml).ok_or(rejection)? {
+                Err(rejection) => match cell.edge_phase_change(Phase::Gas, mg, next.e_g[i]).ok_or(rejection)? {
                     EdgeChange::Whole => {
                         next.m_l[i] += mg;
                         next.e_l[i] += next.e_g[i];
@@ -289,9 +289,7 @@ impl Scheme<'_> {
             match cell.phase(Phase::Liquid, next.m_l[i], next.e_l[i], tl_guess, tg, next.m_g[i], budget) {
                 Ok(liquid) => liquid,
                 Err(rejection) => {
-                    let change = cell
-                        .edge_phase_change(Phase::Liquid, next.m_l[i], next.e_l[i], next.m_g[i])
-                        .ok_or(rejection)?;
+                    let change = cell.edge_phase_change(Phase::Liquid, next.m_l[i], next.e_l[i]).ok_or(rejection)?;
                     let (mass, energy) = match change {
                         EdgeChange::Whole => (next.m_l[i], next.e_l[i]),
                         EdgeChange::Part { mass, energy, .. } => (mass, energy),
@@ -401,10 +399,9 @@ enum EdgeChange {
 }
 
 impl Recovery<'_> {
-    /// A phase of mass `m` and energy `e` per unit volume, next to `m_other` of the other
-    /// phase, whose specific energy lies beyond its table's edge on the side of the other
-    /// phase (liquid above the top of the liquid table, gas below the bottom of the gas table):
-    /// the excess changes phase. The phase stays at its table's edge (hundredths of a kelvin
+    /// A phase of mass `m` and energy `e` per unit volume whose specific energy lies beyond its
+    /// table's edge on the side of the other phase (liquid above the top of the liquid table,
+    /// gas below the bottom of the gas table): the excess changes phase. The phase stays at its table's edge (hundredths of a kelvin
     /// from saturation there) and the mass that carries the excess at the other phase's
     /// saturated internal energy goes to the other phase, so that the cell's internal energy is
     /// kept exactly; the volume that moves is a volume error that the next steps' pressure
@@ -412,8 +409,7 @@ impl Recovery<'_> {
     /// phase's saturated energy goes over whole, mass and energy (a "liquid" above the critical
     /// temperature when the pressure falls below the critical pressure is vapour). `None` where
     /// the energy is not beyond that edge, there is no saturation (above the critical pressure),
-    /// none of the other phase to take the mass, or a partial change would take more than half
-    /// the phase.
+    /// or a partial change would take more than half the phase.
     ///
     /// Decision: near the critical point the phase tables end a few hundredths of a kelvin
     /// from saturation (`data/fluids/README.md`), and liquid the wall heats there (para-hydrogen
@@ -423,8 +419,18 @@ impl Recovery<'_> {
     /// correction does not vanish with the step, so no shorter step brought them back and the
     /// run ended. Holding the liquid at the top and booking the excess as an adjustment instead
     /// destroyed 136 kJ over that run.
-    fn edge_phase_change(&self, phase: Phase, m: f64, e: f64, m_other: f64) -> Option<EdgeChange> {
-        if !(m_other > self.tiny && m > self.tiny) {
+    ///
+    /// Decision: the other phase need not be present. Vapour past its table's bottom condenses
+    /// and liquid past its table's top flashes whether or not the cell holds any of the other
+    /// phase (the tables end at the metastable limits, beyond which the phase does not exist);
+    /// the mass that changes phase enters the empty phase at its saturated energy. Before, a
+    /// cell holding one phase only had no way out: para-hydrogen subcooled at 11 atm with the
+    /// defaults and its inlet at 19.619650779 K ended at 5.58 s with its inlet cell all
+    /// vapour at 0.9986 of the critical pressure, whose volume-error correction lowered the
+    /// pressure below the near-critical mixture's window and left the vapour's energy below its
+    /// table's bottom at any step length.
+    fn edge_phase_change(&self, phase: Phase, m: f64, e: f64) -> Option<EdgeChange> {
+        if m <= self.tiny {
             return None;
         }
         let u = e / m;
