@@ -401,11 +401,12 @@ enum EdgeChange {
 impl Recovery<'_> {
     /// A phase of mass `m` and energy `e` per unit volume whose specific energy lies beyond its
     /// table's edge on the side of the other phase (liquid above the top of the liquid table,
-    /// gas below the bottom of the gas table): the excess changes phase. The phase stays at its table's edge (hundredths of a kelvin
-    /// from saturation there) and the mass that carries the excess at the other phase's
-    /// saturated internal energy goes to the other phase, so that the cell's internal energy is
-    /// kept exactly; the volume that moves is a volume error that the next steps' pressure
-    /// equations remove, as for a trace reset. A phase whose energy lies beyond even the other
+    /// gas below the bottom of the gas table): the excess changes phase. The phase stays at its
+    /// table's edge (hundredths of a kelvin from saturation there) and the mass that carries
+    /// the excess at the other phase's saturated internal energy goes to the other phase (which
+    /// need not be present), so that the cell's internal energy is kept exactly; the volume that
+    /// moves is a volume error that the next steps' pressure equations remove, as for a trace
+    /// reset. A phase whose energy lies beyond even the other
     /// phase's saturated energy goes over whole, mass and energy (a "liquid" above the critical
     /// temperature when the pressure falls below the critical pressure is vapour). `None` where
     /// the energy is not beyond that edge, there is no saturation (above the critical pressure),
