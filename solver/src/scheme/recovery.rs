@@ -406,11 +406,11 @@ impl Recovery<'_> {
     /// the excess at the other phase's saturated internal energy goes to the other phase (which
     /// need not be present), so that the cell's internal energy is kept exactly; the volume that
     /// moves is a volume error that the next steps' pressure equations remove, as for a trace
-    /// reset. A phase whose energy lies beyond even the other
-    /// phase's saturated energy goes over whole, mass and energy (a "liquid" above the critical
-    /// temperature when the pressure falls below the critical pressure is vapour). `None` where
-    /// the energy is not beyond that edge, there is no saturation (above the critical pressure),
-    /// or a partial change would take more than half the phase.
+    /// reset. A phase whose energy lies beyond even the other phase's saturated energy goes over
+    /// whole, mass and energy (a "liquid" above the critical temperature when the pressure falls
+    /// below the critical pressure is vapour). `None` where the energy is not beyond that edge,
+    /// there is no saturation (above the critical pressure), or a partial change would take
+    /// more than half the phase.
     ///
     /// Decision: near the critical point the phase tables end a few hundredths of a kelvin
     /// from saturation (`data/fluids/README.md`), and liquid the wall heats there (para-hydrogen
