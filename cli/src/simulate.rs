@@ -320,6 +320,12 @@ fn print_summary(
             s.mixture_recoveries
         );
     }
+    if s.pressure_refills > 0 {
+        println!(
+            "  {} cell state(s) whose volume error did not shrink with the step recovered at the pressure that fills them (mass and energy kept)",
+            s.pressure_refills
+        );
+    }
     if s.exit_choked_s > 0.0 {
         println!("  the exit was choked for {:.1} s (flowing at its mixture's speed of sound)", s.exit_choked_s);
     }

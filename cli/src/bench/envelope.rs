@@ -196,6 +196,9 @@ struct RunReport {
     exit_choked_s: Option<f64>,
     /// Cell states recovered as one near-critical mixture.
     mixture_recoveries: Option<u64>,
+    /// Cell states recovered at the pressure that fills them (a volume error no shorter step
+    /// shrank).
+    pressure_refills: Option<u64>,
     /// Which controlled variable came closest to its limit in accepted steps, and how often.
     step_limited_by: BTreeMap<String, u64>,
     /// Completed with trace adjustments and energy balance error within the targets.
@@ -454,6 +457,7 @@ fn run_one(plan: &Plan, table: &FluidTable, params: &ParameterSet) -> RunReport 
         wall_heat_j: None,
         exit_choked_s: None,
         mixture_recoveries: None,
+        pressure_refills: None,
         step_limited_by: BTreeMap::new(),
         meets_targets: false,
     };
@@ -498,6 +502,7 @@ fn fill_completed(report: &mut RunReport, s: Summary) {
     report.wall_heat_j = Some(s.wall_heat_j);
     report.exit_choked_s = Some(s.exit_choked_s);
     report.mixture_recoveries = Some(s.mixture_recoveries);
+    report.pressure_refills = Some(s.pressure_refills);
     report.meets_targets =
         s.trace_adjustment_j <= TARGET_TRACE_ADJUSTMENT_J && s.energy_balance_error <= TARGET_ENERGY_BALANCE_ERROR;
     report.step_limited_by = s.step_limited_by;
@@ -786,6 +791,7 @@ mod tests {
             wall_heat_j: Some(1e6),
             exit_choked_s: Some(0.0),
             mixture_recoveries: Some(0),
+            pressure_refills: Some(0),
             step_limited_by: BTreeMap::new(),
             meets_targets: trace_j <= TARGET_TRACE_ADJUSTMENT_J && energy <= TARGET_ENERGY_BALANCE_ERROR,
         }

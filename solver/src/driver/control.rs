@@ -85,6 +85,9 @@ pub(super) struct StepStatistics {
     pub(super) exit_choked_s: f64,
     /// Cells recovered as one near-critical mixture, summed over the accepted steps.
     pub(super) mixture_recoveries: u64,
+    /// Cells recovered again at the pressure at which their phases fill them, summed over the
+    /// accepted steps.
+    pub(super) pressure_refills: u64,
 }
 
 impl StepController {
@@ -107,6 +110,7 @@ impl StepController {
                 step_limited_by: BTreeMap::new(),
                 exit_choked_s: 0.0,
                 mixture_recoveries: 0,
+                pressure_refills: 0,
             },
         }
     }
@@ -150,6 +154,7 @@ impl StepController {
             stats.exit_choked_s += h;
         }
         stats.mixture_recoveries += u64::from(report.mixture_cells);
+        stats.pressure_refills += u64::from(report.refilled_cells);
         if report.change_ratio < c.easy_ratio {
             self.easy_steps += 1;
         } else {

@@ -150,6 +150,11 @@ pub struct Summary {
     /// recovered one by one (mass and energy kept exactly; `scheme/recovery.rs`), summed over
     /// the accepted steps.
     pub mixture_recoveries: u64,
+    /// Cell states recovered again at the pressure at which their phases fill the cell, where a
+    /// retried step's volume error did not shrink with the step (the equation of state solved
+    /// for the pressure, mass and energy kept exactly; `scheme/refill.rs`), summed over the
+    /// accepted steps.
+    pub pressure_refills: u64,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,
     /// First time the wall falls below 150 K, per station.
@@ -375,6 +380,7 @@ pub fn run(
             step_limited_by: steps.step_limited_by,
             exit_choked_s: steps.exit_choked_s,
             mixture_recoveries: steps.mixture_recoveries,
+            pressure_refills: steps.pressure_refills,
             chilldown_time_s: arrivals.chilldown,
             quench_arrival_s: arrivals.quench,
             inlet_liquid_temperature_k: arrivals.inlet_liquid_temperature_k,

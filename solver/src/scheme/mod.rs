@@ -67,6 +67,7 @@ mod conservative;
 mod momentum;
 mod pressure;
 mod recovery;
+mod refill;
 mod sources;
 
 use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
@@ -162,6 +163,8 @@ pub struct StepReport {
     pub exit_choked: bool,
     /// Cells recovered as one near-critical mixture in the step (`recovery.rs`).
     pub mixture_cells: u32,
+    /// Cells recovered again at the pressure at which their phases fill them (`recovery.rs`).
+    pub refilled_cells: u32,
     /// Budget terms.
     pub budget: StepBudget,
 }
@@ -304,6 +307,7 @@ impl<'a> Scheme<'a> {
                 limiting_index: change.worst.cell,
                 exit_choked: st.choke > 0.0,
                 mixture_cells: w.mixture.iter().filter(|&&m| m).count() as u32,
+                refilled_cells: w.refilled.iter().filter(|&&r| r).count() as u32,
                 budget,
             },
         ))
@@ -448,6 +452,9 @@ struct Work {
     volume_retry: Vec<f64>,
     /// Per cell: whether it was recovered as one near-critical mixture (`state_recovery`).
     mixture: Vec<bool>,
+    /// Per cell: whether it was recovered again at the pressure at which its phases fill it
+    /// (`state_recovery`, [`Scheme::refill`]).
+    refilled: Vec<bool>,
     /// Per cell: whether a whole phase went over to the other at its table's edge
     /// (`state_recovery`; exempt from the step's change control, [`Scheme::change_control`]).
     merged: Vec<bool>,
@@ -543,6 +550,7 @@ fn resize(w: &mut Work, n: usize) {
     w.reset.resize(n, false);
     w.merged.resize(n, false);
     w.mixture.resize(n, false);
+    w.refilled.resize(n, false);
     w.volume_retry.resize(n, 0.0);
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);

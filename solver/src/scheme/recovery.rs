@@ -2,7 +2,8 @@
 //! temperatures (with the trace resets booked in the budget), void fraction and volume error.
 
 use super::{
-    PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION, Work, saturation_or_none,
+    PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION, Work, refill,
+    saturation_or_none,
 };
 use crate::fluids::{FluidTable, Phase, PhaseProps};
 use crate::model::{State, clamp_to_phase};
@@ -24,7 +25,13 @@ impl Scheme<'_> {
         budget: &mut StepBudget,
     ) -> Result<f64, Rejection> {
         for i in 0..st.n {
+            let conserved = (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]);
+            let booked = *budget;
             self.recover_or_mix(st, w, next, budget, i)?;
+            w.refilled[i] = false;
+            if refill_wanted(st, w, next, i) {
+                self.refill(st, w, next, budget, i, conserved, booked)?;
+            }
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
             let (merged, reset, reset_volume, edge_mass) = (w.merged[c], w.reset[c], w.reset_volume[c], w.edge_mass[c]);
@@ -99,6 +106,60 @@ impl Scheme<'_> {
             }
         }
         corrected
+    }
+
+    /// Recovers cell `i` again at the pressure at which its phases fill it
+    /// ([`refill::filling_pressure`]), from the masses and energies (`conserved`) and the budget
+    /// (`booked`) it had before its first recovery; where there is no such pressure nearby, or
+    /// the recovery there resets a phase, the first recovery stands.
+    ///
+    /// Decision: this is for a retry whose volume error in the cell did not shrink with the
+    /// step (`refill_wanted`), where the error is the linearised correction's nonlinearity and
+    /// no step length removes it (the rule of [`acceptance::volume_error_check`] accepts such an
+    /// error, and near the critical point the next correction made another as large, at any
+    /// step length). Elsewhere the volume error is the step's accuracy control and stays so.
+    /// The pressure so found is the cell's new pressure, as if the pressure solve had given it:
+    /// the velocities of the step are those of the solve, and the following steps' pressure
+    /// equations start from a cell without a volume error.
+    #[allow(clippy::too_many_arguments)]
+    fn refill(
+        &self,
+        st: &StepInput,
+        w: &mut Work,
+        next: &mut State,
+        budget: &mut StepBudget,
+        i: usize,
+        conserved: (f64, f64, f64, f64),
+        booked: StepBudget,
+    ) -> Result<(), Rejection> {
+        let (mg, ml) = (next.m_g[i], next.m_l[i]);
+        let tiny = PRESENT_MASS_FRACTION * (mg + ml).max(1e-30);
+        let (gp, lp) = (&next.gas[i], &next.liquid[i]);
+        let contents = refill::Contents {
+            m_g: mg,
+            u_g: (mg > tiny).then(|| next.e_g[i] / mg),
+            m_l: ml,
+            u_l: (ml > tiny).then(|| next.e_l[i] / ml),
+            fixed_volume: if mg > tiny { 0.0 } else { mg / gp.rho } + if ml > tiny { 0.0 } else { ml / lp.rho },
+            t_g: next.t_g[i],
+            t_l: next.t_l[i],
+        };
+        let Some(p) = refill::filling_pressure(self.fluid, &contents, next.p[i]) else { return Ok(()) };
+        let x0 = w.x[i][0];
+        (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
+        *budget = booked;
+        w.x[i][0] = p - st.s.p[i];
+        let again = self.recover_or_mix(st, w, next, budget, i);
+        if again.is_ok() && !w.reset[i] && !w.merged[i] && !w.mixture[i] {
+            w.refilled[i] = true;
+            return Ok(());
+        }
+        // the first recovery stands (recovered again: it depends only on what is restored)
+        (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
+        *budget = booked;
+        w.x[i][0] = x0;
+        self.recover_or_mix(st, w, next, budget, i)?;
+        Ok(())
     }
 
     /// Recovers cell `i` ([`Scheme::recover_cell`]), or, where that fails near the critical
@@ -339,6 +400,17 @@ impl Scheme<'_> {
         next.sat[i] = saturation_or_none(fluid, p);
         Ok(verr)
     }
+}
+
+/// Whether cell `i` of a step just recovered is to be refilled ([`Scheme::refill`]): the step
+/// is a retry of one rejected for its volume error, this cell's error then was above its limit
+/// and the retry's is still above half of it (a shorter step did not shrink it), and the cell's
+/// recovery reset no phase (a reset's volume is not the linearisation's).
+fn refill_wanted(st: &StepInput, w: &Work, next: &State, i: usize) -> bool {
+    w.volume_retry_time == st.s.time
+        && w.volume_retry[i] > 0.0
+        && next.volume_error[i].abs() > 0.5 * w.volume_retry[i]
+        && !(w.reset[i] || w.merged[i] || w.mixture[i])
 }
 
 /// The temperature and properties of `phase` at its table's edge towards the other phase at
