@@ -62,8 +62,8 @@ fn balance(fluid: &FluidTable, c: &mut Contents, p: f64) -> Option<(f64, f64)> {
 /// The first trial is the Newton step of the balance's slope at constant energies (or, where
 /// that slope has the wrong sign, a move of the error's size relative to the pressure in the
 /// direction that compresses an overfull cell); the trial moves double (up to the reach) until
-/// the balance changes sign, first in that direction, then in the other; the Illinois variant of the
-/// secant method then narrows the bracket.
+/// the balance changes sign, first in that direction, then in the other; the Illinois variant
+/// of the secant method then narrows the bracket.
 pub(super) fn filling_pressure(fluid: &FluidTable, contents: &Contents, p0: f64) -> Option<f64> {
     let mut c = *contents;
     let (f0, slope) = balance(fluid, &mut c, p0)?;
