@@ -24,13 +24,17 @@ impl Scheme<'_> {
         next: &mut State,
         budget: &mut StepBudget,
     ) -> Result<f64, Rejection> {
+        let retry = w.volume_retry_time == st.s.time;
         for i in 0..st.n {
-            let conserved = (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]);
-            let booked = *budget;
-            self.recover_or_mix(st, w, next, budget, i)?;
             w.refilled[i] = false;
-            if refill_wanted(st, w, next, i) {
-                self.refill(st, w, next, budget, i, conserved, booked)?;
+            // only a retried step's cell that the rejected step found over its limit may be
+            // refilled (`refill_wanted`): only there is what it held before kept
+            let before = (retry && w.volume_retry[i] > 0.0).then(|| Before::take(next, budget, i));
+            self.recover_or_mix(st, w, next, budget, i)?;
+            if let Some(before) = before
+                && refill_wanted(st, w, next, i)
+            {
+                self.refill(st, w, next, budget, i, &before)?;
             }
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
@@ -109,8 +113,8 @@ impl Scheme<'_> {
     }
 
     /// Recovers cell `i` again at the pressure at which its phases fill it
-    /// ([`refill::filling_pressure`]), from the masses and energies (`conserved`) and the budget
-    /// (`booked`) it had before its first recovery; where there is no such pressure nearby, or
+    /// ([`refill::filling_pressure`]), from the masses and energies and the budget it had before
+    /// its first recovery (`before`); where there is no such pressure nearby, or
     /// the recovery there resets a phase, the first recovery stands.
     ///
     /// Decision: this is for a retry whose volume error in the cell did not shrink with the
@@ -121,7 +125,6 @@ impl Scheme<'_> {
     /// The pressure so found is the cell's new pressure, as if the pressure solve had given it:
     /// the velocities of the step are those of the solve, and the following steps' pressure
     /// equations start from a cell without a volume error.
-    #[allow(clippy::too_many_arguments)]
     fn refill(
         &self,
         st: &StepInput,
@@ -129,8 +132,7 @@ impl Scheme<'_> {
         next: &mut State,
         budget: &mut StepBudget,
         i: usize,
-        conserved: (f64, f64, f64, f64),
-        booked: StepBudget,
+        before: &Before,
     ) -> Result<(), Rejection> {
         let (mg, ml) = (next.m_g[i], next.m_l[i]);
         let tiny = PRESENT_MASS_FRACTION * (mg + ml).max(1e-30);
@@ -146,8 +148,7 @@ impl Scheme<'_> {
         };
         let Some(p) = refill::filling_pressure(self.fluid, &contents, next.p[i]) else { return Ok(()) };
         let x0 = w.x[i][0];
-        (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
-        *budget = booked;
+        before.restore(next, budget, i);
         w.x[i][0] = p - st.s.p[i];
         let again = self.recover_or_mix(st, w, next, budget, i);
         if again.is_ok() && !w.reset[i] && !w.merged[i] && !w.mixture[i] {
@@ -155,11 +156,9 @@ impl Scheme<'_> {
             return Ok(());
         }
         // the first recovery stands (recovered again: it depends only on what is restored)
-        (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
-        *budget = booked;
+        before.restore(next, budget, i);
         w.x[i][0] = x0;
-        self.recover_or_mix(st, w, next, budget, i)?;
-        Ok(())
+        self.recover_or_mix(st, w, next, budget, i)
     }
 
     /// Recovers cell `i` ([`Scheme::recover_cell`]), or, where that fails near the critical
@@ -173,15 +172,13 @@ impl Scheme<'_> {
         budget: &mut StepBudget,
         i: usize,
     ) -> Result<(), Rejection> {
-        let conserved = (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]);
-        let booked = *budget;
+        let before = Before::take(next, budget, i);
         w.mixture[i] = false;
         match self.recover_cell(st, w, next, budget, i) {
             Ok(_) => Ok(()),
             Err(rejection) => {
                 // near the critical point no shorter step helps: the cell as one mixture
-                (next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]) = conserved;
-                *budget = booked;
+                before.restore(next, budget, i);
                 self.near_critical_mixture(st, w, next, i).ok_or(rejection)
             }
         }
@@ -399,6 +396,24 @@ impl Scheme<'_> {
         next.volume_error[i] = verr;
         next.sat[i] = saturation_or_none(fluid, p);
         Ok(verr)
+    }
+}
+
+/// What a cell's recovery changes and a second recovery starts from again: the cell's
+/// conserved masses and energies from step 2 and the step's budget.
+struct Before {
+    conserved: [f64; 4],
+    budget: StepBudget,
+}
+
+impl Before {
+    fn take(next: &State, budget: &StepBudget, i: usize) -> Self {
+        Self { conserved: [next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]], budget: *budget }
+    }
+
+    fn restore(&self, next: &mut State, budget: &mut StepBudget, i: usize) {
+        [next.m_g[i], next.m_l[i], next.e_g[i], next.e_l[i]] = self.conserved;
+        *budget = self.budget;
     }
 }
 
