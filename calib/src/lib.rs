@@ -28,6 +28,7 @@ pub mod data;
 pub mod draws;
 #[cfg(feature = "serde")]
 mod exact;
+pub mod heat;
 pub mod inference;
 pub mod model;
 pub mod optim;

@@ -119,7 +119,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
 
     add_noise(&mut output.probes, &noise, args.seed);
     let comparison = match &data {
-        Some((file, data)) => Some(compare(&output, file, data)?),
+        Some((file, data)) => Some(compare(&case, &output, file, data)?),
         None => None,
     };
     let summary =
@@ -145,15 +145,35 @@ struct Comparison {
     file: String,
     fit: cryofit_calib::cost::Fit,
     chilldown: BTreeMap<String, (Option<f64>, Option<f64>)>,
+    /// Heat the wall released by each time, J, data and model read alike from the stations' wall
+    /// temperatures (`cryofit_calib::heat`); empty without wall temperatures in the data.
+    heat: Vec<(f64, Option<f64>, Option<f64>)>,
+}
+
+/// Windows of the heat-release comparison.
+const HEAT_WINDOWS: usize = 6;
+
+/// The times at which the wall's heat release is compared: six equal windows up to the data's
+/// last station chilldown, or to the end of the readings where no station chills down after t = 0.
+fn heat_times(data: &Dataset, chilldown: &BTreeMap<String, (Option<f64>, Option<f64>)>) -> Vec<f64> {
+    let last_chill = chilldown.values().filter_map(|(d, _)| *d).fold(f64::NEG_INFINITY, f64::max);
+    let end = if last_chill > 0.0 { last_chill } else { data.end_time() };
+    if end.is_nan() || end <= 0.0 {
+        return Vec::new();
+    }
+    (1..=HEAT_WINDOWS).map(|k| end * k as f64 / HEAT_WINDOWS as f64).collect()
 }
 
 /// Compares the probes with `data` (every quantity of the data, its default σ): the data must lie
 /// within the simulated time at stations the case probes.
-fn compare(output: &Output, file: &str, data: &Dataset) -> Result<Comparison> {
+fn compare(case: &Case, output: &Output, file: &str, data: &Dataset) -> Result<Comparison> {
     let model = probes_dataset(&output.probes);
     let fit = cryofit_calib::cost::fit(&model, data, &Weights::default())
         .map_err(|e| anyhow!("--data {file}: {e} (the case's [[stations]] and time.end_s must cover the data)"))?;
-    Ok(Comparison { file: file.to_string(), fit, chilldown: chilldown_pairs(data, output) })
+    let chilldown = chilldown_pairs(data, output);
+    let wall = cryofit_calib::heat::Wall::of_case(case);
+    let heat = cryofit_calib::heat::compare(data, &model, &wall, &heat_times(data, &chilldown));
+    Ok(Comparison { file: file.to_string(), fit, chilldown, heat })
 }
 
 fn print_comparison(c: &Comparison) {
@@ -169,6 +189,23 @@ fn print_comparison(c: &Comparison) {
             (Some(d), None) => println!("    {station} chilldown: data {d:.1} s, model not within the run"),
             (None, Some(m)) => println!("    {station} chilldown: model {m:.1} s, data not within the readings"),
             (None, None) => {}
+        }
+    }
+    if c.heat.iter().any(|(_, d, m)| d.is_some() && m.is_some()) {
+        println!("    heat released by the wall (from the stations' wall temperatures), data / model:");
+        let mut prev = (0.0, 0.0, 0.0);
+        for &(t, d, m) in &c.heat {
+            let (Some(d), Some(m)) = (d, m) else { continue };
+            let dt = t - prev.0;
+            println!(
+                "      by {t:6.1} s: {:7.3} / {:7.3} MJ; since {:.1} s {:6.1} / {:6.1} kW",
+                d / 1e6,
+                m / 1e6,
+                prev.0,
+                (d - prev.1) / dt / 1e3,
+                (m - prev.2) / dt / 1e3
+            );
+            prev = (t, d, m);
         }
     }
 }
@@ -284,7 +321,12 @@ fn summary_json(
             .collect();
         let chilldown: BTreeMap<&String, serde_json::Value> =
             c.chilldown.iter().map(|(st, (d, m))| (st, serde_json::json!({"data_s": d, "model_s": m}))).collect();
-        obj.insert("fit".into(), serde_json::json!({"data": c.file, "series": series, "chilldown": chilldown}));
+        let heat: Vec<serde_json::Value> =
+            c.heat.iter().map(|(t, d, m)| serde_json::json!({"time_s": t, "data_j": d, "model_j": m})).collect();
+        obj.insert(
+            "fit".into(),
+            serde_json::json!({"data": c.file, "series": series, "chilldown": chilldown, "heat_released": heat}),
+        );
     }
     let mut text = serde_json::to_string_pretty(&value)?;
     text.push('\n');

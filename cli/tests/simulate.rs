@@ -378,6 +378,11 @@ fn data_compares_the_run_with_measurements() {
     let series = fit["series"].as_array().expect("fit.series");
     assert!(!series.is_empty());
     assert!(series.iter().all(|s| s["rms"] == 0.0), "{series:?}");
+    // the wall's heat release, read alike from both: the same at every time, and printed
+    let heat = fit["heat_released"].as_array().expect("fit.heat_released");
+    assert_eq!(heat.len(), 6, "{heat:?}");
+    assert!(heat.iter().all(|h| h["data_j"].as_f64().is_some() && h["data_j"] == h["model_j"]), "{heat:?}");
+    assert!(stdout.contains("heat released by the wall"), "{stdout}");
 
     let noisy_data = noisy.join("probes.csv");
     let (dir, _) = run("against-noisy", &["--data", noisy_data.to_str().unwrap()]);
