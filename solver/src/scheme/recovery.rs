@@ -525,7 +525,7 @@ impl Recovery<'_> {
         if self.beyond_other_phase(phase, u) {
             return Some(EdgeChange::Whole);
         }
-        let u_other = self.other_saturated_energy(phase)?;
+        let u_other = self.entering_energy(phase)?;
         let (t, props) = self.edge_towards_other(phase)?;
         if !beyond_edge(phase, u, &props) {
             return None;
@@ -578,7 +578,7 @@ impl Recovery<'_> {
     /// clamped into its own table.
     fn beyond_other_phase(&self, phase: Phase, u: f64) -> bool {
         let (fluid, p) = (self.fluid, self.p);
-        match self.other_saturated_energy(phase) {
+        match self.entering_energy(phase) {
             Some(u_other) => match phase {
                 Phase::Liquid => u > u_other,
                 Phase::Gas => u < u_other,
@@ -593,6 +593,33 @@ impl Recovery<'_> {
                     && fluid.temperature_from_energy(other, p, u, guess).is_ok()
             }
         }
+    }
+
+    /// The specific internal energy, J/kg, at which mass of `phase` that changes phase enters
+    /// the other phase: that phase saturated at the cell's pressure, or its table's edge where
+    /// the edge lies beyond saturation; `None` where the table gives no saturation.
+    ///
+    /// Decision: near the critical point the phase tables end a few hundredths of a kelvin on
+    /// their own side of saturation, so the saturated energies of the saturation table can lie
+    /// outside the other phase's table: para-hydrogen at 1.2445 MPa (0.968 of the critical
+    /// pressure), where saturated vapour has 296.8 kJ/kg and the vapour table starts at
+    /// 301.9 kJ/kg (32.74 K). Liquid past its table's top flashed into vapour at 296.8 kJ/kg,
+    /// the cell's vapour fell below its table with it at any step length, and the run ended
+    /// (subcooled at 11 atm with `examples/nbs/calibrated.toml`, at 6.6 s with probes every
+    /// 0.25 s or on the interpolated outputs, at 18.3 s with probes every 2 s). Entering at the
+    /// table's edge, the mass that changes phase is a little smaller and carries the same
+    /// excess energy: the cell's energy is kept exactly.
+    fn entering_energy(&self, phase: Phase) -> Option<f64> {
+        let u_sat = self.other_saturated_energy(phase)?;
+        let other = match phase {
+            Phase::Liquid => Phase::Gas,
+            Phase::Gas => Phase::Liquid,
+        };
+        Some(match (phase, self.edge_towards_other(other)) {
+            (Phase::Liquid, Some((_, bottom))) => u_sat.max(bottom.u),
+            (Phase::Gas, Some((_, top))) => u_sat.min(top.u),
+            (_, None) => u_sat,
+        })
     }
 
     /// The specific internal energy of the other phase than `phase` saturated at the cell's
