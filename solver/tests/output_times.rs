@@ -52,3 +52,38 @@ fn outputs_land_exactly_on_their_times_and_the_end() {
         assert_eq!(profiles, expected, "profile times every {profile} s");
     }
 }
+
+/// What a run writes does not change the run: the steps do not land on output times (the outputs
+/// are interpolated between the accepted states around them), so runs that probe every 0.1 s
+/// and every 0.7 s take the same steps, reach the same chilldown times and write the same values
+/// at the times they share, to the bit.
+#[test]
+fn the_output_intervals_do_not_change_the_run() {
+    let run = |interval: f64, profile: f64| {
+        let case = case(7.0, interval, profile);
+        let fluid = fluids::embedded(&case.fluid.name).unwrap();
+        driver::run(&case, fluid, &ParameterSet::new(), &mut |_| {}).unwrap()
+    };
+    let (fine, coarse) = (run(0.1, 0.5), run(0.7, 3.5));
+    assert_eq!(fine.summary.steps, coarse.summary.steps);
+    assert_eq!(fine.summary.rejected_steps, coarse.summary.rejected_steps);
+    assert_eq!(fine.summary.chilldown_time_s, coarse.summary.chilldown_time_s);
+    assert_eq!(fine.summary.energy_balance_error.to_bits(), coarse.summary.energy_balance_error.to_bits());
+    let mut shared = 0;
+    for c in &coarse.probes {
+        let f = fine
+            .probes
+            .iter()
+            .find(|f| f.time_s == c.time_s && f.station == c.station && f.quantity == c.quantity)
+            .unwrap_or_else(|| panic!("no fine probe at {} s", c.time_s));
+        assert_eq!(f.value.to_bits(), c.value.to_bits(), "{} {} at {} s", c.station, c.quantity, c.time_s);
+        shared += 1;
+    }
+    assert!(shared > 50, "{shared} probe values compared");
+    let at = |out: &driver::Output, t: f64| -> Vec<u64> {
+        out.profiles.iter().filter(|p| p.time_s == t).map(|p| p.value.to_bits()).collect()
+    };
+    assert_eq!(at(&fine, 3.5), at(&coarse, 3.5));
+    assert_eq!(at(&fine, 7.0), at(&coarse, 7.0));
+    assert!(!at(&fine, 3.5).is_empty());
+}

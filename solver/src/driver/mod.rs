@@ -336,21 +336,22 @@ pub fn run(
     let mut budget = EnergyBudget::new(&s, &grid, case.physics.gravity);
     let mut controller = StepController::new(StepControl::default(), t);
     let mut observers: [&mut dyn RunObserver; 4] = [&mut probes, &mut profiles, &mut arrivals, &mut budget];
+    let mut before: Option<State> = None;
     loop {
-        observers.iter_mut().for_each(|o| o.on_state(&s));
+        observers.iter_mut().for_each(|o| o.on_state(before.as_ref(), &s));
         if s.time >= end - eps {
             break;
         }
         check_limits(t, controller.steps(), &clock, s.time)?;
-        let target = observers.iter().map(|o| o.next_output()).fold(f64::INFINITY, f64::min).min(end);
-        let (next, h, report) = advance(&mut scheme, &mut controller, &s, target, &boundaries)?;
+        // the steps land on the end time only: the outputs between are interpolated
+        // (`observers::weight_at` says why)
+        let (mut next, h, report) = advance(&mut scheme, &mut controller, &s, end, &boundaries)?;
         observers.iter_mut().for_each(|o| o.on_step(h, &report));
-        s = next;
-        // a step that lands on an output time (or the end) to within rounding lands on it
-        // exactly: the outputs carry the times the case asked for, not 7.999999999999997 s
-        if (s.time - target).abs() <= eps {
-            s.time = target;
+        // a step that lands on the end to within rounding lands on it exactly
+        if (next.time - end).abs() <= eps {
+            next.time = end;
         }
+        before = Some(std::mem::replace(&mut s, next));
         if controller.steps().is_multiple_of(PROGRESS_INTERVAL_STEPS) {
             progress(Progress { time_s: s.time, end_s: end, steps: controller.steps() });
         }
