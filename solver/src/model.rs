@@ -194,7 +194,13 @@ pub fn boundary_state(
 
 /// Moves `t` into the temperature range the `phase` table covers at pressure `p`.
 pub fn clamp_to_phase(fluid: &FluidTable, phase: Phase, p: f64, t: f64) -> f64 {
-    match fluid.phase_temperature_range(phase, p) {
+    clamp_to_range(fluid.phase_temperature_range(phase, p), t)
+}
+
+/// [`clamp_to_phase`] with the table's range ([`FluidTable::phase_temperature_range`]) already
+/// looked up: `t` a millionth of the range inside it, unchanged where there is no range.
+pub fn clamp_to_range(range: Option<(f64, f64)>, t: f64) -> f64 {
+    match range {
         Some((lo, hi)) => {
             let margin = 1e-6 * (hi - lo);
             t.clamp(lo + margin, hi - margin)

@@ -530,3 +530,134 @@ fn corrupt_tables_are_rejected() {
     longer.push(0);
     assert!(FluidTable::from_bytes(&longer).is_err());
 }
+
+/// The bits of every field of `props`, for comparisons that tell −0 from 0 and NaN from NaN.
+fn props_bits(pr: &fluids::PhaseProps) -> [u64; 12] {
+    [pr.rho, pr.drho_dp, pr.drho_dt, pr.u, pr.du_dp, pr.du_dt, pr.h, pr.dh_dp, pr.dh_dt, pr.cp, pr.mu, pr.k]
+        .map(f64::to_bits)
+}
+
+/// `FluidTable::temperature_from_energy` as it was before the inversion evaluated u and du/dT
+/// alone: every iterate through `phase_props`. `Err(None)` where the table has no range at `p`
+/// (the error is the table's own message then).
+fn reference_inversion(
+    t: &FluidTable,
+    phase: Phase,
+    p: f64,
+    u: f64,
+    t_guess: f64,
+) -> Result<(f64, fluids::PhaseProps), Option<FluidError>> {
+    let fail =
+        || Some(FluidError::EnergyOutOfRange { fluid: t.name().to_string(), phase, pressure_pa: p, energy_j_kg: u });
+    if !u.is_finite() {
+        return Err(fail());
+    }
+    let Some((lo, hi)) = t.phase_temperature_range(phase, p) else {
+        return Err(None);
+    };
+    let mut temp = if t_guess.is_finite() { t_guess.clamp(lo, hi) } else { 0.5 * (lo + hi) };
+    for _ in 0..12 {
+        let pr = t.phase_props(phase, p, temp).map_err(Some)?;
+        let f = pr.u - u;
+        if pr.du_dt > 0.0 {
+            let step = f / pr.du_dt;
+            let next = temp - step;
+            if step.abs() <= 1e-11 * temp {
+                return Ok((temp, pr));
+            }
+            if next >= lo && next <= hi {
+                temp = next;
+                continue;
+            }
+        }
+        break;
+    }
+    let (mut a, mut b) = (lo, hi);
+    let fa = t.phase_props(phase, p, a).map_err(Some)?.u - u;
+    let fb = t.phase_props(phase, p, b).map_err(Some)?.u - u;
+    if fa > 0.0 || fb < 0.0 {
+        return Err(fail());
+    }
+    temp = 0.5 * (a + b);
+    for _ in 0..200 {
+        let pr = t.phase_props(phase, p, temp).map_err(Some)?;
+        let f = pr.u - u;
+        if f > 0.0 {
+            b = temp;
+        } else {
+            a = temp;
+        }
+        let newton = if pr.du_dt > 0.0 { temp - f / pr.du_dt } else { f64::NAN };
+        let next = if newton > a && newton < b { newton } else { 0.5 * (a + b) };
+        if (next - temp).abs() <= 1e-11 * temp || b - a <= 1e-11 * temp {
+            let pr = t.phase_props(phase, p, next).map_err(Some)?;
+            return Ok((next, pr));
+        }
+        temp = next;
+    }
+    Err(fail())
+}
+
+/// An isobar's evaluations are bit for bit the table's: its range, its properties, its values
+/// without derivatives and its energy inversion (against the inversion through `phase_props`
+/// alone), errors included, inside the tables, on and just past their edges and outside them.
+#[test]
+fn isobars_are_bit_identical_to_the_table() {
+    for name in fluids::EMBEDDED_FLUIDS {
+        let t = fluids::embedded(name).unwrap();
+        let c = t.constants();
+        for phase in Phase::ALL {
+            let mut pressures: Vec<f64> = random_states(t, phase, 60, 11).into_iter().map(|(p, _)| p).collect();
+            pressures.extend([c.p_min_pa, c.p_max_pa, c.p_min_pa * (1.0 - 1e-12), c.p_max_pa * 1.5, f64::NAN]);
+            let mut r = rng(13);
+            for p in pressures {
+                let iso = t.isobar(phase, p);
+                let range = t.phase_temperature_range(phase, p);
+                assert_eq!(
+                    iso.temperature_range().map(|(a, b)| (a.to_bits(), b.to_bits())),
+                    range.map(|(a, b)| (a.to_bits(), b.to_bits()))
+                );
+                let (lo, hi) = range.unwrap_or((c.t_triple_k, c.t_max_k));
+                let mut temps = vec![lo, hi, lo - 1e-10, hi + 1e-10, lo - 1.0, hi + 1.0, f64::NAN, -1.0];
+                temps.extend((0..20).map(|_| lo + (hi - lo) * r()));
+                for temp in temps {
+                    let want = t.phase_props(phase, p, temp);
+                    let got = iso.props(temp);
+                    match (&want, &got) {
+                        (Ok(a), Ok(b)) => assert_eq!(props_bits(a), props_bits(b), "{name} {phase} p={p} T={temp}"),
+                        (Err(a), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}")),
+                        _ => panic!("{name} {phase} p={p} T={temp}: {want:?} against {got:?}"),
+                    }
+                    match (&want, iso.values(temp)) {
+                        (Ok(a), Ok(v)) => assert_eq!(
+                            [a.rho, a.u, a.cp, a.mu, a.k].map(f64::to_bits),
+                            [v.rho, v.u, v.cp, v.mu, v.k].map(f64::to_bits),
+                            "{name} {phase} p={p} T={temp}"
+                        ),
+                        (Err(a), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}")),
+                        (want, got) => panic!("{name} {phase} p={p} T={temp}: {want:?} against {got:?}"),
+                    }
+                    // energies of this state, past the table's ends and not a number, from a
+                    // good, a poor and no guess
+                    let u0 = want.as_ref().map_or(-1e5, |pr| pr.u);
+                    for u in [u0, u0 + 1e-3 * u0.abs(), u0 - 5e5, u0 + 5e5, f64::NAN] {
+                        for guess in [temp, lo + 0.9 * (hi - lo), c.t_max_k, f64::NAN] {
+                            let want = reference_inversion(t, phase, p, u, guess);
+                            let got = t.temperature_from_energy(phase, p, u, guess);
+                            let at = || format!("{name} {phase} p={p} u={u} guess={guess}");
+                            match (want, got) {
+                                (Ok((ta, a)), Ok((tb, b))) => {
+                                    assert_eq!(ta.to_bits(), tb.to_bits(), "{}", at());
+                                    assert_eq!(props_bits(&a), props_bits(&b), "{}", at());
+                                }
+                                (Err(Some(a)), Err(b)) => assert_eq!(format!("{a:?}"), format!("{b:?}"), "{}", at()),
+                                (Err(None), Err(_)) => {}
+                                (want, got) => panic!("{}: {want:?} against {got:?}", at()),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

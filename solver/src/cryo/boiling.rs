@@ -47,10 +47,14 @@ impl Local {
     /// are held within the gas table; where the table holds no vapour at a temperature (above
     /// the critical pressure, say) the basis stays as it was.
     pub fn with_boiling_basis(mut self, fluid: &FluidTable) -> Self {
+        // the gas table at the cell's pressure, located once for the three bases, which read
+        // values only (no derivatives)
+        let gas = fluid.isobar(Phase::Gas, self.p);
+        let range = gas.temperature_range();
         let vapour_at = |t: f64| -> Option<Vapour> {
-            let (lo, hi) = fluid.phase_temperature_range(Phase::Gas, self.p)?;
+            let (lo, hi) = range?;
             let t = t.clamp(lo, hi);
-            let g = fluid.phase_props(Phase::Gas, self.p, t).ok()?;
+            let g = gas.values(t).ok()?;
             Some(Vapour { rho: g.rho, mu: g.mu, k: g.k, cp: g.cp })
         };
         if let Some(v) = vapour_at(self.t_sat) {

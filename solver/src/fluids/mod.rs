@@ -27,7 +27,10 @@ mod sound;
 mod table;
 
 pub use sound::frozen_mixture_sound_speed;
-pub use table::{FluidConstants, FluidTable, LimiterReport, PhaseProps, Saturation, StabilityViolation, StableState};
+pub use table::{
+    FluidConstants, FluidTable, Isobar, LimiterReport, PhaseProps, PhaseValues, Saturation, StabilityViolation,
+    StableState,
+};
 
 use std::fmt;
 use std::sync::OnceLock;

@@ -2,7 +2,7 @@
 
 use serde::Deserialize;
 
-use super::hermite::{Axis, Hermite1, SegmentSpec, Weights};
+use super::hermite::{Axis, Hermite1, Located, SegmentSpec, Weights};
 use super::{FluidError, Phase};
 
 mod stability;
@@ -126,6 +126,9 @@ struct PhaseTable {
     /// Node data in memory order `[component][property]` (component: value, d/dp, d/dT,
     /// d²/dpdT), so that one pass over the properties vectorises.
     data: Vec<[f64; MEM_NODE]>,
+    /// Per pair of pressure rows `i`, `i + 1`: the temperatures of the first and last node of
+    /// their usable cells ([`PhaseTable::cell_range`]), where there are any; computed once.
+    ranges: Vec<Option<(f64, f64)>>,
 }
 
 impl PhaseTable {
@@ -147,6 +150,12 @@ impl PhaseTable {
         (j >= first && j < end).then(|| row.start as usize + (j - first))
     }
 
+    /// The temperature interval of the cells usable between pressure rows `i` and `i + 1`.
+    #[inline]
+    fn temperature_range(&self, i: usize) -> Option<(f64, f64)> {
+        self.ranges.get(i).copied().flatten()
+    }
+
     /// First and last temperature node of the cells usable between pressure rows `i` and `i + 1`.
     fn cell_range(&self, i: usize) -> Option<(usize, usize)> {
         let (a, b) = (self.rows.get(i)?, self.rows.get(i + 1)?);
@@ -158,6 +167,154 @@ impl PhaseTable {
         let last = end_a.min(end_b).checked_sub(1)?;
         (last > lo).then_some((lo, last))
     }
+}
+
+/// The lane of the specific internal energy (the order of [`PROPS`]).
+const U: usize = 1;
+
+/// Where a pressure lies on the pressure axis and the Hermite weights there: the pressure half
+/// of a table evaluation, which evaluations at one pressure share ([`Isobar`]).
+#[derive(Debug, Clone, Copy)]
+struct PressureAt {
+    p: f64,
+    /// The interval and fraction of `p` and their weights; `None` outside the axis (NaN too).
+    located: Option<(Located, Weights)>,
+}
+
+/// The four corner nodes of a table cell, `(i, j)`, `(i, j+1)`, `(i+1, j)`, `(i+1, j+1)` (`i`
+/// the pressure row, `j` the temperature node), and the weights of a state in it along
+/// pressure (`wx`) and temperature (`wy`).
+///
+/// Its evaluations ([`Cell::props`], [`Cell::values`], [`Cell::energy`]) form each quantity
+/// with the same operations in the same order, so that a quantity any two of them give has
+/// the same bits in both.
+struct Cell<'a> {
+    n00: &'a [f64; MEM_NODE],
+    n01: &'a [f64; MEM_NODE],
+    n10: &'a [f64; MEM_NODE],
+    n11: &'a [f64; MEM_NODE],
+    wx: Weights,
+    wy: Weights,
+}
+
+impl Cell<'_> {
+    /// The properties and their derivatives at pressure `p` (the pressure the cell was found
+    /// for).
+    #[inline(always)]
+    fn props(&self, p: f64) -> PhaseProps {
+        let (n00, n01, n10, n11) = (self.n00, self.n01, self.n10, self.n11);
+        // Interpolate along T on the two pressure rows (the value and the d/dp component), then
+        // along p; straight loops over the property lanes, which the compiler vectorises.
+        let (f00, fp00, ft00, fpt00) = (lane(n00, 0), lane(n00, 1), lane(n00, 2), lane(n00, 3));
+        let (f01, fp01, ft01, fpt01) = (lane(n01, 0), lane(n01, 1), lane(n01, 2), lane(n01, 3));
+        let (f10, fp10, ft10, fpt10) = (lane(n10, 0), lane(n10, 1), lane(n10, 2), lane(n10, 3));
+        let (f11, fp11, ft11, fpt11) = (lane(n11, 0), lane(n11, 1), lane(n11, 2), lane(n11, 3));
+        let wv = value_weights(&self.wy);
+        let wd = slope_weights(&self.wy);
+        let g0: [f64; LANES] = along(wv, &f00, &ft00, &f01, &ft01);
+        let g1: [f64; LANES] = along(wv, &f10, &ft10, &f11, &ft11);
+        let gp0: [f64; LANES] = along(wv, &fp00, &fpt00, &fp01, &fpt01);
+        let gp1: [f64; LANES] = along(wv, &fp10, &fpt10, &fp11, &fpt11);
+        // T derivatives are needed for density and internal energy only (lanes 0 and 1)
+        let gt0: [f64; 2] = along(wd, &f00, &ft00, &f01, &ft01);
+        let gt1: [f64; 2] = along(wd, &f10, &ft10, &f11, &ft11);
+        let gpt0: [f64; 2] = along(wd, &fp00, &fpt00, &fp01, &fpt01);
+        let gpt1: [f64; 2] = along(wd, &fp10, &fpt10, &fp11, &fpt11);
+        let v: [f64; LANES] = along(value_weights(&self.wx), &g0, &gp0, &g1, &gp1);
+        let dp: [f64; 2] = along(slope_weights(&self.wx), &g0, &gp0, &g1, &gp1);
+        let dt: [f64; 2] = along(value_weights(&self.wx), &gt0, &gpt0, &gt1, &gpt1);
+        let rho = v[0];
+        let inv_rho = 1.0 / rho;
+        let p_rho2 = p * inv_rho * inv_rho;
+        PhaseProps {
+            rho,
+            drho_dp: dp[0],
+            drho_dt: dt[0],
+            u: v[U],
+            du_dp: dp[U],
+            du_dt: dt[U],
+            h: v[U] + p * inv_rho,
+            dh_dp: dp[U] + inv_rho - p_rho2 * dp[0],
+            dh_dt: dt[U] - p_rho2 * dt[0],
+            cp: v[2],
+            mu: v[3],
+            k: v[4],
+        }
+    }
+
+    /// The tabulated values without derivatives: the `v` of [`Cell::props`] alone.
+    #[inline]
+    fn values(&self) -> PhaseValues {
+        let (n00, n01, n10, n11) = (self.n00, self.n01, self.n10, self.n11);
+        let wv = value_weights(&self.wy);
+        let g0: [f64; LANES] = along(wv, &lane(n00, 0), &lane(n00, 2), &lane(n01, 0), &lane(n01, 2));
+        let g1: [f64; LANES] = along(wv, &lane(n10, 0), &lane(n10, 2), &lane(n11, 0), &lane(n11, 2));
+        let gp0: [f64; LANES] = along(wv, &lane(n00, 1), &lane(n00, 3), &lane(n01, 1), &lane(n01, 3));
+        let gp1: [f64; LANES] = along(wv, &lane(n10, 1), &lane(n10, 3), &lane(n11, 1), &lane(n11, 3));
+        let v: [f64; LANES] = along(value_weights(&self.wx), &g0, &gp0, &g1, &gp1);
+        PhaseValues { rho: v[0], u: v[U], cp: v[2], mu: v[3], k: v[4] }
+    }
+
+    /// Specific internal energy u and ∂u/∂T at constant p: the energy lane of [`Cell::props`]
+    /// alone (its `v[U]` and `dt[U]`).
+    #[inline]
+    fn energy(&self) -> (f64, f64) {
+        // component `comp` (value, d/dp, d/dT, d²/dpdT) of the energy lane at a node
+        let e = |n: &[f64; MEM_NODE], comp: usize| n[comp * LANES + U];
+        // along T from node `a` (j) to node `b` (j + 1) of one pressure row: component `comp`
+        // (value 0 or d/dp 1) with its d/dT companion (`comp + 2`), the operands `along` takes
+        // for lane U of `g*`, `gp*` (weights `wv`) and `gt*`, `gpt*` (weights `wd`)
+        let row = |w: [f64; 4], a: &[f64; MEM_NODE], b: &[f64; MEM_NODE], comp: usize| {
+            hermite4(w, e(a, comp), e(a, comp + 2), e(b, comp), e(b, comp + 2))
+        };
+        let (n00, n01, n10, n11) = (self.n00, self.n01, self.n10, self.n11);
+        let (wv, wd) = (value_weights(&self.wy), slope_weights(&self.wy));
+        let (g0, g1) = (row(wv, n00, n01, 0), row(wv, n10, n11, 0));
+        let (gp0, gp1) = (row(wv, n00, n01, 1), row(wv, n10, n11, 1));
+        let (gt0, gt1) = (row(wd, n00, n01, 0), row(wd, n10, n11, 0));
+        let (gpt0, gpt1) = (row(wd, n00, n01, 1), row(wd, n10, n11, 1));
+        let wxv = value_weights(&self.wx);
+        (hermite4(wxv, g0, gp0, g1, gp1), hermite4(wxv, gt0, gpt0, gt1, gpt1))
+    }
+}
+
+/// Component `comp` (value, d/dp, d/dT, d²/dpdT) of every property lane of a node.
+#[inline(always)]
+fn lane(n: &[f64; MEM_NODE], comp: usize) -> [f64; LANES] {
+    let mut out = [0.0; LANES];
+    for (o, x) in out.iter_mut().zip(&n[comp * LANES..comp * LANES + LANES]) {
+        *o = *x;
+    }
+    out
+}
+
+/// One cubic Hermite combination `w · (a, a', b, b')`, summed left to right. Every table
+/// interpolation goes through it, so that each evaluation gives a value the same bits.
+#[inline(always)]
+fn hermite4(w: [f64; 4], a: f64, at: f64, b: f64, bt: f64) -> f64 {
+    w[0] * a + w[1] * at + w[2] * b + w[3] * bt
+}
+
+/// [`hermite4`] on the first `N` lanes; a straight loop, which the compiler vectorises.
+#[inline(always)]
+fn along<const N: usize>(w: [f64; 4], a: &[f64], at: &[f64], b: &[f64], bt: &[f64]) -> [f64; N] {
+    let mut out = [0.0; N];
+    for q in 0..N {
+        out[q] = hermite4(w, a[q], at[q], b[q], bt[q]);
+    }
+    out
+}
+
+/// The weights of a value, in the order of [`hermite4`]'s operands.
+#[inline(always)]
+fn value_weights(w: &Weights) -> [f64; 4] {
+    [w.a[0], w.b[0], w.a[1], w.b[1]]
+}
+
+/// The weights of a derivative along the axis, in the order of [`hermite4`]'s operands.
+#[inline(always)]
+fn slope_weights(w: &Weights) -> [f64; 4] {
+    [w.da[0], w.db[0], w.da[1], w.db[1]]
 }
 
 /// Properties of one phase at a pressure and temperature, with the partial derivatives the
@@ -182,6 +339,22 @@ pub struct PhaseProps {
     pub dh_dp: f64,
     /// ∂h/∂T at constant p, J/kg/K (the interpolant's; `cp` is the tabulated value).
     pub dh_dt: f64,
+    /// Isobaric specific heat c_p, J/kg/K.
+    pub cp: f64,
+    /// Dynamic viscosity μ, Pa s.
+    pub mu: f64,
+    /// Thermal conductivity k, W/m/K.
+    pub k: f64,
+}
+
+/// The tabulated values of one phase at a pressure and temperature, without derivatives
+/// ([`Isobar::values`]; each the same bits as in [`PhaseProps`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PhaseValues {
+    /// Density ρ, kg/m³.
+    pub rho: f64,
+    /// Specific internal energy u, J/kg.
+    pub u: f64,
     /// Isobaric specific heat c_p, J/kg/K.
     pub cp: f64,
     /// Dynamic viscosity μ, Pa s.
@@ -356,7 +529,13 @@ impl FluidTable {
                     .map(|((&first, &count), &start)| Row { first, end: first + count, start })
                     .collect(),
                 data,
+                ranges: Vec::new(),
             });
+        }
+        for tab in &mut phases {
+            tab.ranges = (0..tab.rows.len().saturating_sub(1))
+                .map(|i| tab.cell_range(i).map(|(lo, hi)| (t_axis.node(lo), t_axis.node(hi))))
+                .collect();
         }
         let sat = &header.saturation;
         if sat.columns.len() != 12 || sat.t_columns.len() != 2 {
@@ -475,9 +654,7 @@ impl FluidTable {
 
     /// The temperature interval the `phase` table answers at pressure `p`, if any.
     pub fn phase_temperature_range(&self, phase: Phase, p: f64) -> Option<(f64, f64)> {
-        let lp = self.p_axis.locate(p)?;
-        let (lo, hi) = self.phases[phase.index()].cell_range(lp.index)?;
-        Some((self.t_axis.node(lo), self.t_axis.node(hi)))
+        self.phases[phase.index()].temperature_range(self.p_axis.locate(p)?.index)
     }
 
     /// Where the `phase` table ends at the spinodal near pressure `p`: the spinodal temperature
@@ -495,102 +672,83 @@ impl FluidTable {
         }
     }
 
+    /// Where pressure `p` lies on the pressure axis, and the Hermite weights there.
+    #[inline(always)]
+    fn pressure_at(&self, p: f64) -> PressureAt {
+        PressureAt { p, located: self.p_axis.locate(p).map(|lp| (lp, Weights::new(lp.frac, lp.width))) }
+    }
+
+    /// The cell of the `phase` table that answers `(p, T)` (`p` located in `at`): its four
+    /// corner nodes and the weights of the state in it. The one lookup behind
+    /// [`FluidTable::phase_props`] and the evaluations of an [`Isobar`], so that all of them
+    /// answer (or refuse) the same states from the same cell with the same weights.
+    #[inline(always)]
+    fn cell(&self, phase: Phase, at: &PressureAt, t: f64) -> Result<Cell<'_>, FluidError> {
+        let (Some((mut lp, mut wx)), Some(mut lt)) = (at.located, self.t_axis.locate(t)) else {
+            return Err(self.range_error(phase, at.p, t));
+        };
+        let tab = &self.phases[phase.index()];
+        let (o0, o1) = match (tab.cell_offset(lp.index, lt.index), tab.cell_offset(lp.index + 1, lt.index)) {
+            (Some(a), Some(b)) => (a, b),
+            _ => {
+                let Some((i, fi, j, fj)) = self.edge_cell(tab, &lp, &lt) else {
+                    return Err(self.range_error(phase, at.p, t));
+                };
+                (lp.index, lp.frac, lt.index, lt.frac) = (i, fi, j, fj);
+                // the weights of the pressure fraction in the cell the state moved to (the
+                // interval width stays that of the cell `p` located in)
+                wx = Weights::new(lp.frac, lp.width);
+                (
+                    tab.cell_offset(lp.index, lt.index).expect("checked cell"),
+                    tab.cell_offset(lp.index + 1, lt.index).expect("checked cell"),
+                )
+            }
+        };
+        let data = &tab.data;
+        Ok(Cell {
+            n00: &data[o0],
+            n01: &data[o0 + 1],
+            n10: &data[o1],
+            n11: &data[o1 + 1],
+            wx,
+            wy: Weights::new(lt.frac, lt.width),
+        })
+    }
+
+    /// A state on the edge of the coverage may round into the neighbouring (missing) cell: the
+    /// cell it borders, with the fraction just past 0 or 1 (pressure index and fraction,
+    /// temperature index and fraction), or `None` where it borders none.
+    #[cold]
+    #[inline(never)]
+    fn edge_cell(&self, tab: &PhaseTable, lp: &Located, lt: &Located) -> Option<(usize, f64, usize, f64)> {
+        const EDGE: f64 = 1e-9;
+        let cell_ok = |i: usize, j: usize| tab.cell_offset(i, j).is_some() && tab.cell_offset(i + 1, j).is_some();
+        let np = self.p_axis.len() - 1;
+        let nt = self.t_axis.len() - 1;
+        let ip = [(lp.index, lp.frac), (lp.index.wrapping_sub(1), lp.frac + 1.0), (lp.index + 1, lp.frac - 1.0)];
+        let it = [(lt.index, lt.frac), (lt.index.wrapping_sub(1), lt.frac + 1.0), (lt.index + 1, lt.frac - 1.0)];
+        let near = |f: f64| (-EDGE..=1.0 + EDGE).contains(&f);
+        ip.iter()
+            .flat_map(|a| it.iter().map(move |b| (*a, *b)))
+            .find(|&((i, fi), (j, fj))| i < np && j < nt && near(fi) && near(fj) && cell_ok(i, j))
+            .map(|((i, fi), (j, fj))| (i, fi, j, fj))
+    }
+
     /// Properties of `phase` at `(p, T)`, with derivatives.
     ///
     /// The phase is taken as given: a liquid above its saturation temperature is a superheated
     /// (metastable) liquid, evaluated on the continuation of the liquid equation of state.
     #[inline]
     pub fn phase_props(&self, phase: Phase, p: f64, t: f64) -> Result<PhaseProps, FluidError> {
-        let (Some(mut lp), Some(mut lt)) = (self.p_axis.locate(p), self.t_axis.locate(t)) else {
-            return Err(self.range_error(phase, p, t));
-        };
-        let tab = &self.phases[phase.index()];
-        // A state on the edge of the coverage may round into the neighbouring (missing) cell:
-        // move it to the cell it borders, with the fraction just past 0 or 1.
-        const EDGE: f64 = 1e-9;
-        let cell_ok = |i: usize, j: usize| tab.cell_offset(i, j).is_some() && tab.cell_offset(i + 1, j).is_some();
-        let fast = match (tab.cell_offset(lp.index, lt.index), tab.cell_offset(lp.index + 1, lt.index)) {
-            (Some(a), Some(b)) => Some((a, b)),
-            _ => None,
-        };
-        if fast.is_none() {
-            let np = self.p_axis.len() - 1;
-            let nt = self.t_axis.len() - 1;
-            let ip = [(lp.index, lp.frac), (lp.index.wrapping_sub(1), lp.frac + 1.0), (lp.index + 1, lp.frac - 1.0)];
-            let it = [(lt.index, lt.frac), (lt.index.wrapping_sub(1), lt.frac + 1.0), (lt.index + 1, lt.frac - 1.0)];
-            let near = |f: f64| (-EDGE..=1.0 + EDGE).contains(&f);
-            let found = ip
-                .iter()
-                .flat_map(|a| it.iter().map(move |b| (*a, *b)))
-                .find(|&((i, fi), (j, fj))| i < np && j < nt && near(fi) && near(fj) && cell_ok(i, j));
-            let Some(((i, fi), (j, fj))) = found else {
-                return Err(self.range_error(phase, p, t));
-            };
-            (lp.index, lp.frac, lt.index, lt.frac) = (i, fi, j, fj);
-        }
-        let (o0, o1) = match fast {
-            Some(o) => o,
-            None => (
-                tab.cell_offset(lp.index, lt.index).expect("checked cell"),
-                tab.cell_offset(lp.index + 1, lt.index).expect("checked cell"),
-            ),
-        };
-        let wx = Weights::new(lp.frac, lp.width);
-        let wy = Weights::new(lt.frac, lt.width);
-        let data = &tab.data;
-        // corners: (i, j), (i, j+1), (i+1, j), (i+1, j+1)
-        let (n00, n01, n10, n11) = (&data[o0], &data[o0 + 1], &data[o1], &data[o1 + 1]);
-        // Interpolate along T on the two pressure rows (the value and the d/dp component), then
-        // along p; straight loops over the property lanes, which the compiler vectorises.
-        let lane = |n: &[f64; MEM_NODE], comp: usize| -> [f64; LANES] {
-            let mut out = [0.0; LANES];
-            for (o, x) in out.iter_mut().zip(&n[comp * LANES..comp * LANES + LANES]) {
-                *o = *x;
-            }
-            out
-        };
-        let (f00, fp00, ft00, fpt00) = (lane(n00, 0), lane(n00, 1), lane(n00, 2), lane(n00, 3));
-        let (f01, fp01, ft01, fpt01) = (lane(n01, 0), lane(n01, 1), lane(n01, 2), lane(n01, 3));
-        let (f10, fp10, ft10, fpt10) = (lane(n10, 0), lane(n10, 1), lane(n10, 2), lane(n10, 3));
-        let (f11, fp11, ft11, fpt11) = (lane(n11, 0), lane(n11, 1), lane(n11, 2), lane(n11, 3));
-        fn along<const N: usize>(w: [f64; 4], a: &[f64], at: &[f64], b: &[f64], bt: &[f64]) -> [f64; N] {
-            let mut out = [0.0; N];
-            for q in 0..N {
-                out[q] = w[0] * a[q] + w[1] * at[q] + w[2] * b[q] + w[3] * bt[q];
-            }
-            out
-        }
-        let wv = [wy.a[0], wy.b[0], wy.a[1], wy.b[1]];
-        let wd = [wy.da[0], wy.db[0], wy.da[1], wy.db[1]];
-        let g0: [f64; LANES] = along(wv, &f00, &ft00, &f01, &ft01);
-        let g1: [f64; LANES] = along(wv, &f10, &ft10, &f11, &ft11);
-        let gp0: [f64; LANES] = along(wv, &fp00, &fpt00, &fp01, &fpt01);
-        let gp1: [f64; LANES] = along(wv, &fp10, &fpt10, &fp11, &fpt11);
-        // T derivatives are needed for density and internal energy only (lanes 0 and 1)
-        let gt0: [f64; 2] = along(wd, &f00, &ft00, &f01, &ft01);
-        let gt1: [f64; 2] = along(wd, &f10, &ft10, &f11, &ft11);
-        let gpt0: [f64; 2] = along(wd, &fp00, &fpt00, &fp01, &fpt01);
-        let gpt1: [f64; 2] = along(wd, &fp10, &fpt10, &fp11, &fpt11);
-        let v: [f64; LANES] = along([wx.a[0], wx.b[0], wx.a[1], wx.b[1]], &g0, &gp0, &g1, &gp1);
-        let dp: [f64; 2] = along([wx.da[0], wx.db[0], wx.da[1], wx.db[1]], &g0, &gp0, &g1, &gp1);
-        let dt: [f64; 2] = along([wx.a[0], wx.b[0], wx.a[1], wx.b[1]], &gt0, &gpt0, &gt1, &gpt1);
-        let rho = v[0];
-        let inv_rho = 1.0 / rho;
-        let p_rho2 = p * inv_rho * inv_rho;
-        Ok(PhaseProps {
-            rho,
-            drho_dp: dp[0],
-            drho_dt: dt[0],
-            u: v[1],
-            du_dp: dp[1],
-            du_dt: dt[1],
-            h: v[1] + p * inv_rho,
-            dh_dp: dp[1] + inv_rho - p_rho2 * dp[0],
-            dh_dt: dt[1] - p_rho2 * dt[0],
-            cp: v[2],
-            mu: v[3],
-            k: v[4],
-        })
+        Ok(self.cell(phase, &self.pressure_at(p), t)?.props(p))
+    }
+
+    /// The `phase` table at pressure `p`, for several evaluations there: the pressure is
+    /// located on the table's axis once. Each evaluation gives bit for bit what the
+    /// corresponding `FluidTable` method gives at `(phase, p)`.
+    #[inline]
+    pub fn isobar(&self, phase: Phase, p: f64) -> Isobar<'_> {
+        Isobar { table: self, phase, at: self.pressure_at(p) }
     }
 
     /// Temperature of `phase` at pressure `p` with specific internal energy `u`, and the
@@ -603,61 +761,7 @@ impl FluidTable {
         u: f64,
         t_guess: f64,
     ) -> Result<(f64, PhaseProps), FluidError> {
-        let fail = || FluidError::EnergyOutOfRange {
-            fluid: self.constants.name.clone(),
-            phase,
-            pressure_pa: p,
-            energy_j_kg: u,
-        };
-        if !u.is_finite() {
-            return Err(fail());
-        }
-        let Some((lo, hi)) = self.phase_temperature_range(phase, p) else {
-            return Err(self.range_error(phase, p, t_guess));
-        };
-        // Newton from the guess; u(T) is monotone (du/dT|p > 0 wherever the phase exists)
-        let mut t = if t_guess.is_finite() { t_guess.clamp(lo, hi) } else { 0.5 * (lo + hi) };
-        for _ in 0..12 {
-            let pr = self.phase_props(phase, p, t)?;
-            let f = pr.u - u;
-            if pr.du_dt > 0.0 {
-                let step = f / pr.du_dt;
-                let next = t - step;
-                if step.abs() <= 1e-11 * t {
-                    return Ok((t, pr));
-                }
-                if next >= lo && next <= hi {
-                    t = next;
-                    continue;
-                }
-            }
-            break;
-        }
-        // safeguarded bisection-Newton on the bracket
-        let (mut a, mut b) = (lo, hi);
-        let fa = self.phase_props(phase, p, a)?.u - u;
-        let fb = self.phase_props(phase, p, b)?.u - u;
-        if fa > 0.0 || fb < 0.0 {
-            return Err(fail());
-        }
-        t = 0.5 * (a + b);
-        for _ in 0..200 {
-            let pr = self.phase_props(phase, p, t)?;
-            let f = pr.u - u;
-            if f > 0.0 {
-                b = t;
-            } else {
-                a = t;
-            }
-            let newton = if pr.du_dt > 0.0 { t - f / pr.du_dt } else { f64::NAN };
-            let next = if newton > a && newton < b { newton } else { 0.5 * (a + b) };
-            if (next - t).abs() <= 1e-11 * t || b - a <= 1e-11 * t {
-                let pr = self.phase_props(phase, p, next)?;
-                return Ok((next, pr));
-            }
-            t = next;
-        }
-        Err(fail())
+        self.isobar(phase, p).temperature_from_energy(u, t_guess)
     }
 
     /// Saturation properties at pressure `p` (from the triple-point pressure to 0.995 of the
@@ -777,5 +881,106 @@ impl FluidTable {
         };
         let props = self.phase_props(phase, p, t)?;
         Ok(StableState { label, phase, props, t_sat })
+    }
+}
+
+/// One phase of a fluid table at one pressure ([`FluidTable::isobar`]), for several
+/// evaluations at that pressure: the pressure is located on the table's axis once. Each answer
+/// is bit for bit that of the corresponding [`FluidTable`] method at the same phase and
+/// pressure ([`FluidTable::phase_temperature_range`], [`FluidTable::phase_props`],
+/// [`FluidTable::temperature_from_energy`]), and it fails where that fails.
+#[derive(Debug, Clone, Copy)]
+pub struct Isobar<'a> {
+    table: &'a FluidTable,
+    phase: Phase,
+    at: PressureAt,
+}
+
+impl Isobar<'_> {
+    /// The temperature interval the table answers at this pressure, if any
+    /// ([`FluidTable::phase_temperature_range`]).
+    #[inline]
+    pub fn temperature_range(&self) -> Option<(f64, f64)> {
+        let (lp, _) = self.at.located?;
+        self.table.phases[self.phase.index()].temperature_range(lp.index)
+    }
+
+    /// Properties at temperature `t`, with derivatives ([`FluidTable::phase_props`]).
+    #[inline]
+    pub fn props(&self, t: f64) -> Result<PhaseProps, FluidError> {
+        Ok(self.table.cell(self.phase, &self.at, t)?.props(self.at.p))
+    }
+
+    /// The tabulated values at temperature `t`, without derivatives: the same numbers as
+    /// [`Isobar::props`] gives for them, at a fraction of its work.
+    #[inline]
+    pub fn values(&self, t: f64) -> Result<PhaseValues, FluidError> {
+        Ok(self.table.cell(self.phase, &self.at, t)?.values())
+    }
+
+    /// Temperature with specific internal energy `u`, and the properties there
+    /// ([`FluidTable::temperature_from_energy`]). `t_guess` (for example the previous time
+    /// level's temperature) speeds up the Newton iteration; the answer does not depend on it.
+    ///
+    /// The iterations evaluate u and ∂u/∂T alone (the same numbers as the properties give for
+    /// them, in a fraction of the work); the properties are evaluated once, at the answer.
+    pub fn temperature_from_energy(&self, u: f64, t_guess: f64) -> Result<(f64, PhaseProps), FluidError> {
+        let (table, phase, p) = (self.table, self.phase, self.at.p);
+        let fail = || FluidError::EnergyOutOfRange {
+            fluid: table.constants.name.clone(),
+            phase,
+            pressure_pa: p,
+            energy_j_kg: u,
+        };
+        if !u.is_finite() {
+            return Err(fail());
+        }
+        let Some((lo, hi)) = self.temperature_range() else {
+            return Err(table.range_error(phase, p, t_guess));
+        };
+        let cell = |t: f64| table.cell(phase, &self.at, t);
+        // Newton from the guess; u(T) is monotone (du/dT|p > 0 wherever the phase exists)
+        let mut t = if t_guess.is_finite() { t_guess.clamp(lo, hi) } else { 0.5 * (lo + hi) };
+        for _ in 0..12 {
+            let c = cell(t)?;
+            let (u_t, du_dt) = c.energy();
+            let f = u_t - u;
+            if du_dt > 0.0 {
+                let step = f / du_dt;
+                let next = t - step;
+                if step.abs() <= 1e-11 * t {
+                    return Ok((t, c.props(p)));
+                }
+                if next >= lo && next <= hi {
+                    t = next;
+                    continue;
+                }
+            }
+            break;
+        }
+        // safeguarded bisection-Newton on the bracket
+        let (mut a, mut b) = (lo, hi);
+        let fa = cell(a)?.energy().0 - u;
+        let fb = cell(b)?.energy().0 - u;
+        if fa > 0.0 || fb < 0.0 {
+            return Err(fail());
+        }
+        t = 0.5 * (a + b);
+        for _ in 0..200 {
+            let (u_t, du_dt) = cell(t)?.energy();
+            let f = u_t - u;
+            if f > 0.0 {
+                b = t;
+            } else {
+                a = t;
+            }
+            let newton = if du_dt > 0.0 { t - f / du_dt } else { f64::NAN };
+            let next = if newton > a && newton < b { newton } else { 0.5 * (a + b) };
+            if (next - t).abs() <= 1e-11 * t || b - a <= 1e-11 * t {
+                return Ok((next, cell(next)?.props(p)));
+            }
+            t = next;
+        }
+        Err(fail())
     }
 }

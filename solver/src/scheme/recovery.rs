@@ -6,7 +6,7 @@ use super::{
     saturation_or_none,
 };
 use crate::fluids::{FluidTable, Phase, PhaseProps};
-use crate::model::{State, clamp_to_phase};
+use crate::model::{State, clamp_to_range};
 
 /// Fraction of the critical pressure above which a cell whose phases cannot be recovered is
 /// recovered as one mixture ([`Scheme::near_critical_mixture`]).
@@ -659,9 +659,13 @@ impl Recovery<'_> {
                 ("liquid temperature", "liquid specific energy (J/kg)", "liquid energy outside the property table")
             }
         };
-        let target = clamp_to_phase(fluid, phase, p, other_t);
+        // the phase's table at the cell's pressure, located once for the evaluations below
+        let table = fluid.isobar(phase, p);
+        let range = table.temperature_range();
         let reset = |budget: &mut StepBudget| -> Result<Recovered, Rejection> {
-            let pr = fluid.phase_props(phase, p, target).map_err(|_| Rejection {
+            // the other phase's temperature moved into this phase's table (`clamp_to_phase`)
+            let target = clamp_to_range(range, other_t);
+            let pr = table.props(target).map_err(|_| Rejection {
                 cell: i,
                 variable: name,
                 value: target,
@@ -684,7 +688,7 @@ impl Recovery<'_> {
             }
             return reset(budget);
         }
-        match fluid.temperature_from_energy(phase, p, e / m, guess) {
+        match table.temperature_from_energy(e / m, guess) {
             Ok((t, pr)) => Ok((t, pr, e, false)),
             Err(_)
                 if trace_frac < self.blend_max.max(TRACE_RESET_FRACTION)
@@ -693,13 +697,13 @@ impl Recovery<'_> {
             {
                 // the nearest temperature the table holds, which changes the trace's
                 // density (and so the cell's volume balance) least
-                let Some((lo, hi)) = fluid.phase_temperature_range(phase, p) else {
+                let Some((lo, hi)) = range else {
                     return reset(budget);
                 };
-                let u_lo = fluid.phase_props(phase, p, lo).map(|pr| pr.u).unwrap_or(f64::NAN);
+                let u_lo = table.props(lo).map(|pr| pr.u).unwrap_or(f64::NAN);
                 let margin = 1e-6 * (hi - lo);
                 let t = if e / m <= u_lo { lo + margin } else { hi - margin };
-                let pr = fluid.phase_props(phase, p, t).map_err(|_| Rejection {
+                let pr = table.props(t).map_err(|_| Rejection {
                     cell: i,
                     variable: name,
                     value: t,
