@@ -32,6 +32,8 @@ pub struct Wall {
     initial: Profile,
     /// Wall mass per metre at each quadrature midpoint, kg/m.
     mass_per_m: Vec<f64>,
+    /// The wall material's specific energy at its initial temperature at each midpoint, J/kg.
+    initial_energy: Vec<f64>,
 }
 
 impl Wall {
@@ -39,14 +41,17 @@ impl Wall {
     pub fn of_case(case: &Case) -> Self {
         let grid = Grid::from_case(case);
         let length_m = case.pipe.length_m;
-        let mass_per_m = (0..POINTS)
-            .map(|k| {
-                let x = (k as f64 + 0.5) / POINTS as f64 * length_m;
+        let initial = case.initial.wall_temperature_k.clone();
+        let midpoints = (0..POINTS).map(|k| (k as f64 + 0.5) / POINTS as f64 * length_m);
+        let mass_per_m = midpoints
+            .clone()
+            .map(|x| {
                 let i = grid.x_junction.partition_point(|&xj| xj <= x).clamp(1, grid.n) - 1;
                 grid.wall_mass[i] / grid.dx[i]
             })
             .collect();
-        Self { length_m, material: grid.material, initial: case.initial.wall_temperature_k.clone(), mass_per_m }
+        let initial_energy = midpoints.map(|x| grid.material.specific_energy_j_kg(initial.at(x))).collect();
+        Self { length_m, material: grid.material, initial, mass_per_m, initial_energy }
     }
 
     /// The wall's total mass, kg.
@@ -58,7 +63,7 @@ impl Wall {
 /// Heat the wall has released by time `t_s`, J, read from the wall temperatures of `series` (see
 /// the module): `None` where `series` holds no wall temperature at all.
 pub fn released(series: &Dataset, wall: &Wall, t_s: f64) -> Option<f64> {
-    let mut stations: Vec<(f64, f64)> = series
+    let mut stations: Vec<[f64; 2]> = series
         .series
         .iter()
         .filter(|((_, q), _)| q == WALL_TEMPERATURE)
@@ -68,30 +73,21 @@ pub fn released(series: &Dataset, wall: &Wall, t_s: f64) -> Option<f64> {
                 (_, Some(&last), Some(&v)) if t_s > last => v,
                 _ => s.at(t_s).unwrap_or_else(|| wall.initial.at(s.x_m)),
             };
-            (s.x_m, t)
+            [s.x_m, t]
         })
         .collect();
     if stations.is_empty() {
         return None;
     }
-    stations.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let now = |x: f64| -> f64 {
-        let k = stations.partition_point(|s| s.0 <= x);
-        if k == 0 {
-            return stations[0].1;
-        }
-        if k == stations.len() {
-            return stations[k - 1].1;
-        }
-        let (a, b) = (stations[k - 1], stations[k]);
-        if b.0 == a.0 { b.1 } else { a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0) }
-    };
+    stations.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    // linear between the stations, flat beyond them: a case profile through them
+    let now = Profile::Table(stations);
     let dx = wall.length_m / POINTS as f64;
     let q = (0..POINTS)
         .map(|k| {
             let x = (k as f64 + 0.5) * dx;
-            let e0 = wall.material.specific_energy_j_kg(wall.initial.at(x));
-            wall.mass_per_m[k] * (e0 - wall.material.specific_energy_j_kg(now(x))) * dx
+            let e = wall.material.specific_energy_j_kg(now.at(x));
+            wall.mass_per_m[k] * (wall.initial_energy[k] - e) * dx
         })
         .sum();
     Some(q)

@@ -108,15 +108,19 @@ impl<'a> ProbeRecorder<'a> {
 
 impl RunObserver for ProbeRecorder<'_> {
     fn on_state(&mut self, before: Option<&State>, s: &State) {
+        // each state's values once, for every output time that falls due in this step
+        let mut values: Option<Vec<([f64; 10], [f64; 10])>> = None;
         while let Some(t) = self.clock.take_due(s.time) {
             let w = weight_at(t, before, s, self.clock.eps);
-            for st in self.stations {
-                let now = probe_values(s, self.grid, st);
-                let then = match before {
-                    Some(b) if w < 1.0 => probe_values(b, self.grid, st),
-                    _ => now,
-                };
-                for ((quantity, a), b) in PROBE_QUANTITIES.into_iter().zip(then).zip(now) {
+            let (grid, stations) = (self.grid, self.stations);
+            let values = values.get_or_insert_with(|| {
+                stations
+                    .iter()
+                    .map(|st| (before.map_or([0.0; 10], |b| probe_values(b, grid, st)), probe_values(s, grid, st)))
+                    .collect()
+            });
+            for (st, (then, now)) in stations.iter().zip(values.iter()) {
+                for ((quantity, a), b) in PROBE_QUANTITIES.into_iter().zip(*then).zip(*now) {
                     let value = blend(a, b, w);
                     self.probes.push(Observation { time_s: t, station: st.name.clone(), x_m: st.x_m, quantity, value });
                 }
@@ -147,14 +151,16 @@ impl<'a> ProfileRecorder<'a> {
 
 impl RunObserver for ProfileRecorder<'_> {
     fn on_state(&mut self, before: Option<&State>, s: &State) {
+        // each state's profile once, for every profile time that falls due in this step
+        let mut values: Option<(Profile, Profile)> = None;
         while let Some(t) = self.clock.take_due(s.time) {
             let w = weight_at(t, before, s, self.clock.eps);
-            let now = profile_values(s, self.grid);
-            let then = match before {
-                Some(b) if w < 1.0 => profile_values(b, self.grid),
-                _ => now.clone(),
-            };
-            for ((x_m, quantity, a), (_, _, b)) in then.into_iter().zip(now) {
+            let grid = self.grid;
+            let (then, now) = values.get_or_insert_with(|| {
+                let now = profile_values(s, grid);
+                (before.map_or_else(|| now.clone(), |b| profile_values(b, grid)), now)
+            });
+            for (&(x_m, quantity, a), &(_, _, b)) in then.iter().zip(now.iter()) {
                 self.profiles.push(ProfilePoint { time_s: t, x_m, quantity, value: blend(a, b, w) });
             }
         }
@@ -464,8 +470,11 @@ fn probe_values(s: &State, g: &Grid, st: &Station) -> [f64; 10] {
     ]
 }
 
-/// The whole-line profile of state `s`: (x, quantity, value), cells then junctions.
-fn profile_values(s: &State, g: &Grid) -> Vec<(f64, &'static str, f64)> {
+/// One state's whole-line profile: (x, quantity, value), cells then junctions.
+type Profile = Vec<(f64, &'static str, f64)>;
+
+/// The whole-line profile of state `s`, cells then junctions.
+fn profile_values(s: &State, g: &Grid) -> Profile {
     let mut out = Vec::with_capacity(6 * g.n + 2 * (g.n + 1));
     for i in 0..g.n {
         let x = g.x_cell[i];

@@ -49,6 +49,14 @@ impl Phase {
     /// Both phases, liquid first.
     pub const ALL: [Phase; 2] = [Phase::Liquid, Phase::Gas];
 
+    /// The other phase.
+    pub fn other(self) -> Phase {
+        match self {
+            Phase::Liquid => Phase::Gas,
+            Phase::Gas => Phase::Liquid,
+        }
+    }
+
     pub(crate) fn index(self) -> usize {
         match self {
             Phase::Liquid => 0,

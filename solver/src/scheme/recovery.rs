@@ -522,10 +522,11 @@ impl Recovery<'_> {
             return None;
         }
         let u = e / m;
-        if self.beyond_other_phase(phase, u) {
+        let entering = self.entering_energy(phase);
+        if self.beyond_other_phase_at(phase, u, entering) {
             return Some(EdgeChange::Whole);
         }
-        let u_other = self.entering_energy(phase)?;
+        let u_other = entering?;
         let (t, props) = self.edge_towards_other(phase)?;
         if !beyond_edge(phase, u, &props) {
             return None;
@@ -577,20 +578,21 @@ impl Recovery<'_> {
     /// phase goes over whole ([`Recovery::edge_phase_change`]); it is never a trace to be
     /// clamped into its own table.
     fn beyond_other_phase(&self, phase: Phase, u: f64) -> bool {
+        self.beyond_other_phase_at(phase, u, self.entering_energy(phase))
+    }
+
+    /// [`Recovery::beyond_other_phase`] with the phase's [`Recovery::entering_energy`] known.
+    fn beyond_other_phase_at(&self, phase: Phase, u: f64, entering: Option<f64>) -> bool {
         let (fluid, p) = (self.fluid, self.p);
-        match self.entering_energy(phase) {
+        match entering {
             Some(u_other) => match phase {
                 Phase::Liquid => u > u_other,
                 Phase::Gas => u < u_other,
             },
             None => {
-                let other = match phase {
-                    Phase::Liquid => Phase::Gas,
-                    Phase::Gas => Phase::Liquid,
-                };
                 let guess = fluid.constants().t_critical_k;
                 fluid.temperature_from_energy(phase, p, u, guess).is_err()
-                    && fluid.temperature_from_energy(other, p, u, guess).is_ok()
+                    && fluid.temperature_from_energy(phase.other(), p, u, guess).is_ok()
             }
         }
     }
@@ -611,11 +613,7 @@ impl Recovery<'_> {
     /// excess energy: the cell's energy is kept exactly.
     fn entering_energy(&self, phase: Phase) -> Option<f64> {
         let u_sat = self.other_saturated_energy(phase)?;
-        let other = match phase {
-            Phase::Liquid => Phase::Gas,
-            Phase::Gas => Phase::Liquid,
-        };
-        Some(match (phase, self.edge_towards_other(other)) {
+        Some(match (phase, self.edge_towards_other(phase.other())) {
             (Phase::Liquid, Some((_, bottom))) => u_sat.max(bottom.u),
             (Phase::Gas, Some((_, top))) => u_sat.min(top.u),
             (_, None) => u_sat,
