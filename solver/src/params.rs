@@ -448,8 +448,12 @@ macro_rules! parameter_table {
                 lower: 0.25,
                 upper: 4.0,
                 unit: "-",
-                description: "overall scaling of the two-phase wall friction (Lockhart–Martinelli with RELAP5 partition)",
-                /// `fwsc`: scale of the two-phase wall friction.
+                description: "overall scaling of the wall friction (Lockhart–Martinelli with RELAP5 partition; it scales a phase alone too, below 1 under Churchill's tube friction)",
+                /// `fwsc`: scale of the wall friction. It multiplies the whole partitioned
+                /// Lockhart–Martinelli gradient, so a phase alone (the gradient's limit as the other
+                /// phase vanishes) is scaled too: below 1 that is less than Churchill's friction of
+                /// the tube, and every run whose flow the friction limits speeds up (VALIDATION.md,
+                /// "Both readings against the line's throughput").
                 field: wall_friction_scale,
             }
             "chisholm_c" {
