@@ -109,18 +109,19 @@ impl<'a> ProbeRecorder<'a> {
 impl RunObserver for ProbeRecorder<'_> {
     fn on_state(&mut self, before: Option<&State>, s: &State) {
         // each state's values once, for every output time that falls due in this step
-        let mut values: Option<Vec<([f64; 10], [f64; 10])>> = None;
+        let mut values: Option<Vec<(Option<ProbeValues>, ProbeValues)>> = None;
         while let Some(t) = self.clock.take_due(s.time) {
             let w = weight_at(t, before, s, self.clock.eps);
             let (grid, stations) = (self.grid, self.stations);
             let values = values.get_or_insert_with(|| {
                 stations
                     .iter()
-                    .map(|st| (before.map_or([0.0; 10], |b| probe_values(b, grid, st)), probe_values(s, grid, st)))
+                    .map(|st| (before.map(|b| probe_values(b, grid, st)), probe_values(s, grid, st)))
                     .collect()
             });
-            for (st, (then, now)) in stations.iter().zip(values.iter()) {
-                for ((quantity, a), b) in PROBE_QUANTITIES.into_iter().zip(*then).zip(*now) {
+            for (st, &(then, now)) in stations.iter().zip(values.iter()) {
+                // without a state before (the initial one) the weight is 1: the state's own values
+                for ((quantity, a), b) in PROBE_QUANTITIES.into_iter().zip(then.unwrap_or(now)).zip(now) {
                     let value = blend(a, b, w);
                     self.probes.push(Observation { time_s: t, station: st.name.clone(), x_m: st.x_m, quantity, value });
                 }
@@ -450,8 +451,11 @@ fn junction_mass_flow(s: &State, g: &Grid, j: usize) -> f64 {
     g.area_junction[j] * (s.m_g[ig] * s.v_g[j] + s.m_l[il] * s.v_l[j])
 }
 
+/// One station's [`PROBE_QUANTITIES`] in one state.
+type ProbeValues = [f64; 10];
+
 /// The [`PROBE_QUANTITIES`] of station `st` in state `s`, in that order.
-fn probe_values(s: &State, g: &Grid, st: &Station) -> [f64; 10] {
+fn probe_values(s: &State, g: &Grid, st: &Station) -> ProbeValues {
     let (jl, jr, fj) = st.junctions;
     let mass_flow = (1.0 - fj) * junction_mass_flow(s, g, jl) + fj * junction_mass_flow(s, g, jr);
     [
