@@ -147,8 +147,9 @@ pub struct Summary {
     /// of sound of its mixture, whatever the pressure beyond), s.
     pub exit_choked_s: f64,
     /// Cell states recovered as one near-critical mixture because their phases could not be
-    /// recovered one by one (mass and energy kept exactly; `scheme/recovery.rs`), summed over
-    /// the accepted steps.
+    /// recovered one by one, or because a volume error that no step shrinks had no filling
+    /// pressure (mass and energy kept exactly; `scheme/recovery.rs`), summed over the accepted
+    /// steps.
     pub mixture_recoveries: u64,
     /// Cell states recovered again at the pressure at which their phases fill the cell, where a
     /// retried step's volume error did not shrink with the step (the equation of state solved

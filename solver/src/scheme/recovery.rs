@@ -130,7 +130,17 @@ impl Scheme<'_> {
     /// Recovers cell `i` again at the pressure at which its phases fill it
     /// ([`refill::filling_pressure`]), from the masses and energies and the budget it had before
     /// its first recovery (`before`); where there is no such pressure nearby, or
-    /// the recovery there resets a phase, the first recovery stands.
+    /// the recovery there resets a phase, the cell is recovered as one fluid near the critical
+    /// point ([`Scheme::near_critical_mixture`], from 0.98 to 1.1 times the critical pressure),
+    /// and elsewhere the first recovery stands.
+    ///
+    /// Decision: just above the critical pressure the refill can find no pressure: the
+    /// para-hydrogen line subcooled at 11 atm (defaults, 20 cells, the drag's Newton slope
+    /// unbounded) had a cell at 1.2966 MPa whose "liquid" (30.4 kg per m³ of cell at 249.4 kJ/kg)
+    /// was at the critical density beside gas at 47 K, underfilled by 4.8e-3; it fills only
+    /// below the critical pressure, where that energy lies above the liquid table's top at every
+    /// pressure, so the volume balance has no value on that side, and the run ended at 7.98 s
+    /// with its steps halved below 1e-9 s. Above the critical pressure the two are one fluid.
     ///
     /// Decision: this is for a retry whose volume error in the cell did not shrink with the
     /// step (`refill_wanted`), where the error is the linearised correction's nonlinearity and
@@ -207,11 +217,15 @@ impl Scheme<'_> {
     }
 
     /// Cell `i`'s fluid as one mixture in equilibrium at its new pressure, where that pressure
-    /// lies within `NEAR_CRITICAL_FRACTION` of the critical pressure (below it) and the phases
-    /// could not be recovered one by one: the cell's mass and internal energy are shared by the
+    /// lies within the `window` around the critical pressure (from `NEAR_CRITICAL_FRACTION` of
+    /// it: up to it where the phases could not be recovered one by one, up to
+    /// `SUPERCRITICAL_FRACTION` of it where a volume error no step shrinks has no filling
+    /// pressure): the cell's mass and internal energy are shared by the
     /// lever rule between saturated liquid and vapour where both phase tables hold them, else
     /// between the liquid table's top and the vapour table's bottom (all liquid or all vapour
-    /// where the mixture's energy lies beyond that end). Mass and energy are kept exactly; the
+    /// where the mixture's energy lies beyond that end; above the critical pressure the vapour
+    /// table's bottom lies below the liquid table's top, and the fluid is all liquid up to that
+    /// top and all "vapour", the supercritical fluid, beyond). Mass and energy are kept exactly; the
     /// volume the mixture then takes is the cell's volume error, which the following steps'
     /// pressure equations remove. `None` elsewhere or where the tables give no such state.
     ///
