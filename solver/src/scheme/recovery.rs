@@ -615,9 +615,9 @@ impl Recovery<'_> {
     /// shrink with the step, such fluid lies inside the dome: para-hydrogen subcooled at
     /// 11 atm (15 and 25 cells, 19.619650779 K inlet) ended with its inlet cell's "gas" at
     /// 237–248 kJ/kg falling from 0.999 to 0.979 of the critical pressure, whose lever-rule
-    /// split sends 70 % of it to the liquid, and (15 cells, the inlet at saturation) with a cell's "liquid" at
-    /// 33.003 K falling from 1.292 to 1.266 MPa, 96 % of which flashed into its gas at 79 K,
-    /// at any step length.
+    /// split sends 70 % of it to the liquid, and (15 cells, the inlet at saturation) with a
+    /// cell's "liquid" at 33.003 K falling from 1.292 to 1.266 MPa, 96 % of which flashed into
+    /// its gas at 79 K, at any step length.
     fn old_beyond_edge(&self, phase: Phase, edge: &PhaseProps) -> bool {
         let p_old = self.s.p[self.i];
         let unbound = p_old >= NEAR_CRITICAL_FRACTION * self.fluid.constants().p_critical_pa
