@@ -34,10 +34,15 @@ fn params_at(path: &str) -> ParameterSet {
 }
 
 fn run(case: &Case, extra: &ParameterSet) -> driver::Output {
+    try_run(case, extra).unwrap_or_else(|e| panic!("{}: {e}", case.title))
+}
+
+/// The case with `extra` over its own parameters, or the error that ended it.
+fn try_run(case: &Case, extra: &ParameterSet) -> Result<driver::Output, driver::SimError> {
     let fluid = fluids::embedded(&case.fluid.name).unwrap();
     let mut set = driver::case_parameters(case).unwrap();
     set.overlay(extra);
-    driver::run(case, fluid, &set, &mut |_| {}).unwrap_or_else(|e| panic!("{}: {e}", case.title))
+    driver::run(case, fluid, &set, &mut |_| {})
 }
 
 /// On 480 cells the first step through the valve, 0.05 % open after 1 ms, accelerated the
@@ -320,10 +325,7 @@ fn the_near_critical_line_runs_on_every_grid() {
             for (name, set) in [("defaults", ParameterSet::new()), ("calibrated", calibrated.clone())] {
                 let mut case = envelope_11atm("parahydrogen", inlet_k, 20.0);
                 case.pipe.cells = cells;
-                let fluid = fluids::embedded("parahydrogen").unwrap();
-                let mut all = driver::case_parameters(&case).unwrap();
-                all.overlay(&set);
-                match driver::run(&case, fluid, &all, &mut |_| {}) {
+                match try_run(&case, &set) {
                     Ok(out) if out.summary.energy_balance_error <= 1e-3 => {}
                     Ok(out) => failed.push(format!(
                         "{cells} cells, {inlet_k} K, {name}: energy balance error {}",
