@@ -619,9 +619,9 @@ impl Recovery<'_> {
     /// cell's "liquid" at 33.003 K falling from 1.292 to 1.266 MPa, 96 % of which flashed into
     /// its gas at 79 K, at any step length.
     fn old_beyond_edge(&self, phase: Phase, edge: &PhaseProps) -> bool {
-        let p_old = self.s.p[self.i];
-        let unbound = p_old >= NEAR_CRITICAL_FRACTION * self.fluid.constants().p_critical_pa
-            && self.fluid.saturation(p_old).is_err();
+        // the old state's saturation, as its recovery stored it (`saturation_or_none`)
+        let unbound = self.s.p[self.i] >= NEAR_CRITICAL_FRACTION * self.fluid.constants().p_critical_pa
+            && self.s.sat[self.i].h_lg <= 0.0;
         if !unbound {
             return false;
         }
