@@ -18,7 +18,7 @@ fn small_case(dir: &Path) -> PathBuf {
 
 /// The true loss coefficient of the twin. (Below about 8 the early liquid rush changes the run's
 /// course from one coefficient to the next. Above it the cost still jitters with the coefficient
-/// as the inlet's geysering does, 417 at the truth against 425–1 644 at 14.0–15.25, so which
+/// as the inlet's geysering does, 417 at the truth against 438–1 059 at 14.0–15.25, so which
 /// point within a few per cent the optimiser ends on is partly chance: over optimiser seeds 1–6,
 /// 3 of 6 end within 5 %. VALIDATION.md, "Time-step refinement", has the measurements.)
 const TRUE_K: f64 = 15.0;
