@@ -289,6 +289,28 @@ struct Running {
     failed: usize,
     /// Best (cost, job id, full unit point) of this stage.
     best: Option<(f64, u64, Vec<f64>)>,
+    /// A variance stage's response-surface minimum, once evaluated and accepted: the stage's
+    /// estimate (full unit point, global id) and the surface's prediction and residual RMS there.
+    #[cfg_attr(feature = "serde", serde(default))]
+    estimate: Option<(Best, Smoothed)>,
+}
+
+/// A smoothed estimate's standing: the response surface's prediction at it and the surface's
+/// residual RMS. A later evaluation replaces the estimate only when its cost is below the
+/// prediction by more than three residual RMS, so that a lucky draw of a jittering cost does not.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
+struct Smoothed {
+    #[cfg_attr(feature = "serde", serde(with = "crate::exact"))]
+    predicted: f64,
+    #[cfg_attr(feature = "serde", serde(with = "crate::exact"))]
+    residual_rms: f64,
+}
+
+impl Smoothed {
+    fn beaten_by(&self, cost: f64) -> bool {
+        cost < self.predicted - 3.0 * self.residual_rms
+    }
 }
 
 /// A handed-out job: the stage algorithm's candidate id and the job's full unit point.
@@ -315,7 +337,11 @@ pub struct Pipeline {
     next_id: u64,
     /// Outstanding jobs by id.
     jobs: BTreeMap<u64, Pending>,
+    /// The calibration's estimate: the lowest-cost evaluation, or a variance stage's smoothed
+    /// minimum (then `smoothed` is set) until an evaluation beats it beyond the cost's jitter.
     best: Option<Best>,
+    #[cfg_attr(feature = "serde", serde(default))]
+    smoothed: Option<Smoothed>,
     evaluations: usize,
     failed: usize,
     reports: Vec<StageReport>,
@@ -365,6 +391,7 @@ impl Pipeline {
             next_id: 0,
             jobs: BTreeMap::new(),
             best: None,
+            smoothed: None,
             evaluations: 0,
             failed: 0,
             reports: Vec::new(),
@@ -400,7 +427,10 @@ impl Pipeline {
         self.stages.iter().fold(0usize, |t, s| t.saturating_add(s.budget))
     }
 
-    /// Best evaluation so far (full unit coordinates).
+    /// The calibration's estimate so far (full unit coordinates): the lowest-cost evaluation, or,
+    /// after a variance stage whose response surface gave an accepted minimum, that minimum's
+    /// evaluation, until a later evaluation is lower than the surface's prediction by more than
+    /// three residual RMS (see [`crate::inference::ResponseSurface`]).
     pub fn best(&self) -> Option<&Best> {
         self.best.as_ref()
     }
@@ -446,6 +476,7 @@ impl Pipeline {
             evaluations: 0,
             failed: 0,
             best: None,
+            estimate: None,
         });
         self.next_stage += 1;
         Ok(())
@@ -481,9 +512,15 @@ impl Pipeline {
             self.active = next;
         }
         let names = |idx: &[usize]| idx.iter().map(|&i| self.space.params()[i].name.clone()).collect::<Vec<_>>();
-        let (best_cost, best_parameters) = match &r.best {
-            Some((c, _, u)) => (Some(*c), self.parameters(u)),
-            None => (None, BTreeMap::new()),
+        // a variance stage's accepted response-surface minimum is its estimate, and the calibration's
+        if let Some((best, smoothed)) = &r.estimate {
+            self.best = Some(best.clone());
+            self.smoothed = Some(*smoothed);
+        }
+        let (best_cost, best_parameters) = match (&r.estimate, &r.best) {
+            (Some((b, _)), _) => (Some(b.cost), self.parameters(&b.unit)),
+            (None, Some((c, _, u))) => (Some(*c), self.parameters(u)),
+            (None, None) => (None, BTreeMap::new()),
         };
         // the next stage starts from the best point so far
         if let Some(b) = &self.best {
@@ -575,6 +612,13 @@ impl Pipeline {
             TellError::Duplicate { id } => TellError::Duplicate { id: r.outstanding.get(&id).copied().unwrap_or(id) },
             other => other,
         })?;
+        let surface = match &r.algorithm {
+            StageAlgorithm::Inference(a) => match a.as_ref() {
+                InferenceAlgorithm::Variance(v) => v.surface_estimate(),
+                _ => None,
+            },
+            StageAlgorithm::Global(_) => None,
+        };
         for e in results {
             let job = self.jobs.remove(&e.id).expect("checked above");
             r.outstanding.remove(&job.local);
@@ -587,8 +631,17 @@ impl Pipeline {
                     if r.best.as_ref().is_none_or(|(bc, bid, _)| better(cost, e.id, *bc, *bid)) {
                         r.best = Some((cost, e.id, job.unit.clone()));
                     }
-                    if self.best.as_ref().is_none_or(|b| better(cost, e.id, b.cost, b.id)) {
+                    if let Some(s) = surface.as_ref().filter(|s| s.id == job.local) {
+                        let smoothed = Smoothed { predicted: s.predicted_cost, residual_rms: s.residual_rms };
+                        r.estimate = Some((Best { id: e.id, unit: job.unit.clone(), cost }, smoothed));
+                    }
+                    let beats = |b: &Best| match &self.smoothed {
+                        Some(s) => s.beaten_by(cost),
+                        None => better(cost, e.id, b.cost, b.id),
+                    };
+                    if self.best.as_ref().is_none_or(beats) {
                         self.best = Some(Best { id: e.id, unit: job.unit, cost });
+                        self.smoothed = None;
                     }
                 }
                 Outcome::Failed { .. } => {

@@ -278,6 +278,55 @@ mod variance {
                 iv.upper
             );
         }
+        // The response surface's minimum is the estimate, and it lies inside the intervals too.
+        // (Here the quadratic spans a region where the log-scaled parameter makes the cost far from
+        // quadratic, so the residual RMS holds shape as well as noise.)
+        let surface = r.surface.as_ref().expect("surface");
+        assert!(surface.accepted, "{surface:?}");
+        let inv = cov.clone().try_inverse().unwrap();
+        let mahalanobis = |x: &[f64]| quadratic(&inv, &m, 0.0)(x).sqrt();
+        let lowest = mahalanobis(&space.to_physical(&v.best().unwrap().unit));
+        let centre = surface.centre_physical.as_ref().unwrap();
+        println!(
+            "residual RMS {:.1}; distance from the truth: lowest evaluation {lowest:.2} sd, surface minimum {:.2} sd",
+            surface.residual_rms,
+            mahalanobis(centre)
+        );
+        for (i, (iv, &c)) in g.interval95.iter().zip(centre).enumerate() {
+            assert!(iv.lower <= c && c <= iv.upper, "parameter {i}: {c} not in [{}, {}]", iv.lower, iv.upper);
+        }
+        let e = v.surface_estimate().expect("estimate");
+        assert_eq!(Some(&e.unit), surface.centre_unit.as_ref());
+        assert_eq!(Some(e.cost), surface.cost);
+    }
+
+    /// On an exact quadratic the surface's minimum is the minimum, and its evaluation agrees with
+    /// the prediction; on a cost with a cliff beside the optimum the evaluation disagrees and the
+    /// lowest evaluation stays the estimate.
+    #[test]
+    fn the_response_surface_finds_an_exact_minimum_and_rejects_a_cliff() {
+        let space = Space::new(vec![param("a", 0.0, 1.0, Scale::Linear), param("b", 0.0, 1.0, Scale::Linear)]).unwrap();
+        let cov = covariance(&[0.02, 0.03], &[&[1.0, 0.4], &[0.4, 1.0]]);
+        let m = [0.4, 0.55];
+        let s = quadratic(&cov.clone().try_inverse().unwrap(), &m, 3.0);
+        let mut v = Variance::new(&space, Some(&[0.42, 0.53]), VarianceOptions::default(), 200, 2).unwrap();
+        minimize(&mut v, 5, |u| ok(s(u)));
+        let r = v.summary();
+        let surface = r.surface.as_ref().expect("surface");
+        assert!(surface.accepted, "{surface:?}");
+        let c = surface.centre_unit.as_ref().unwrap();
+        assert!((c[0] - m[0]).abs() < 1e-9 && (c[1] - m[1]).abs() < 1e-9, "{c:?}");
+        assert!(surface.residual_rms < 1e-9 && (surface.predicted_cost.unwrap() - 3.0).abs() < 1e-9);
+        // a cliff exactly where the surface's minimum falls (the runs are deterministic, so only its
+        // evaluation lands there): the evaluation is far off the prediction
+        let centre = c.clone();
+        let cliff = |u: &[f64]| if u == centre.as_slice() { 50.0 } else { s(u) };
+        let mut v = Variance::new(&space, Some(&[0.42, 0.53]), VarianceOptions::default(), 200, 2).unwrap();
+        minimize(&mut v, 5, |u| ok(cliff(u)));
+        let surface = v.summary().surface.expect("surface");
+        assert!(!surface.accepted && surface.cost == Some(50.0), "{surface:?}");
+        assert!(surface.note.as_deref().unwrap().contains("within three residual RMS"), "{surface:?}");
+        assert!(v.surface_estimate().is_none());
     }
 
     #[test]
@@ -355,7 +404,7 @@ mod variance {
         let m = [0.998, 0.5];
         let s = quadratic(&cov.clone().try_inverse().unwrap(), &m, 0.0);
         let options = VarianceOptions { restarts: 0, profile_points: 0, ..VarianceOptions::default() };
-        let mut v = Variance::new(&space, Some(&m), options, 9, 1).unwrap();
+        let mut v = Variance::new(&space, Some(&m), options, 10, 1).unwrap();
         minimize(&mut v, 9, |u| ok(s(u)));
         let r = v.summary();
         let g = r.gaussian.unwrap();
@@ -372,10 +421,10 @@ mod variance {
     #[test]
     fn rejects_a_budget_without_room_for_the_hessian() {
         let (space, _, _) = problem();
-        // 1 + 2·9 Hessian + 2·3·3 profile + 3·4 restarts = 49.
-        let e = Variance::new(&space, None, VarianceOptions::default(), 48, 0).unwrap_err();
-        assert!(matches!(e, InferenceError::BudgetTooSmall { required: 49, .. }), "{e}");
-        assert!(Variance::new(&space, None, VarianceOptions::default(), 49, 0).is_ok());
+        // 1 + 2·9 Hessian + 2·3·3 profile + 1 surface + 3·4 restarts = 50.
+        let e = Variance::new(&space, None, VarianceOptions::default(), 49, 0).unwrap_err();
+        assert!(matches!(e, InferenceError::BudgetTooSmall { required: 50, .. }), "{e}");
+        assert!(Variance::new(&space, None, VarianceOptions::default(), 50, 0).is_ok());
     }
 
     #[test]

@@ -233,3 +233,55 @@ fn the_noise_temperature_needs_a_variance_stage_before_it() {
     assert!(matches!(e, cryofit_calib::pipeline::PipelineError::NoiseWithoutVariance { index: 1 }), "{e:?}");
     assert!(e.to_string().starts_with("stages[1].temperature = \"noise\""), "{e}");
 }
+
+/// On a cost that jitters, the variance stage's response-surface minimum becomes the calibration's
+/// estimate in place of the lowest (luckiest) evaluation, and a later evaluation replaces it only
+/// when it is lower than the surface's prediction by more than three residual RMS.
+#[test]
+fn a_variance_stage_on_a_jittering_cost_estimates_at_its_response_surface_minimum() {
+    let p =
+        |name: &str, lower: f64, upper: f64| FreeParameter { name: name.into(), lower, upper, scale: Scale::Linear };
+    let s = Space::new(vec![p("a", 0.0, 4.0), p("c", -1.0, 1.0)]).unwrap();
+    let start = s.to_unit(&[1.5, 0.0]);
+    let mut variance = StageSpec::new(AlgorithmName::Variance, 60);
+    variance.step = Some(0.05);
+    let mut mcmc = StageSpec::new(AlgorithmName::Mcmc, 16 * 50);
+    mcmc.walkers = Some(16);
+    mcmc.spread = Some(0.02);
+    mcmc.temperature = Some(cryofit_calib::config::Temperature::Noise);
+    let stages = vec![StageSpec::new(AlgorithmName::Cmaes, 400), variance, mcmc];
+    let mut pipe = Pipeline::new(s, stages, start, 9).unwrap();
+    let mut lowest = (f64::INFINITY, BTreeMap::new());
+    while !pipe.is_finished() {
+        let jobs = pipe.ask(64);
+        let results: Vec<Evaluation> =
+            jobs.iter().map(|j| Evaluation { id: j.id, outcome: jittered(&j.parameters, 5.0) }).collect();
+        for (j, r) in jobs.iter().zip(&results) {
+            if let Outcome::Ok { cost } = r.outcome
+                && cost < lowest.0
+            {
+                lowest = (cost, j.parameters.clone());
+            }
+        }
+        pipe.tell(&results).unwrap();
+    }
+    let reports = pipe.reports();
+    let Some(InferenceSummary::Variance(v)) = &reports[1].details else { panic!("no variance summary") };
+    let surface = v.surface.as_ref().expect("surface");
+    assert!(surface.accepted, "{surface:?}");
+    let centre = surface.centre_physical.as_ref().unwrap();
+    let threshold = surface.predicted_cost.unwrap() - 3.0 * surface.residual_rms;
+    assert!(lowest.0 >= threshold, "an evaluation beat the surface beyond its jitter: {} < {threshold}", lowest.0);
+    // the variance stage reports it, and the calibration's estimate stays it through the MCMC stage
+    assert_eq!(reports[1].best_cost, surface.cost);
+    assert_eq!((reports[1].best_parameters["a"], reports[1].best_parameters["c"]), (centre[0], centre[1]));
+    let best = pipe.best().unwrap();
+    assert_eq!(best.cost, surface.cost.unwrap());
+    assert_eq!(pipe.parameters(&best.unit)["a"], centre[0]);
+    assert!(best.cost > lowest.0, "the estimate is not the lowest evaluation here");
+    // nearer the true minimum (1.3, −0.2), in its standard deviations, than the lowest evaluation
+    let distance = |a: f64, c: f64| (((a - 1.3) / 0.05).powi(2) + ((c + 0.2) / 0.01).powi(2)).sqrt();
+    let (d_surface, d_lowest) = (distance(centre[0], centre[1]), distance(lowest.1["a"], lowest.1["c"]));
+    println!("distance from the truth: surface minimum {d_surface:.3} sd, lowest evaluation {d_lowest:.3} sd");
+    assert!(d_surface < d_lowest, "{d_surface} vs {d_lowest}");
+}

@@ -185,8 +185,13 @@ pub fn state_bytes(s: &StageSpec, d: usize) -> f64 {
         }
         AlgorithmName::Variance => {
             let restarts = s.restarts.unwrap_or(3) as f64 + 1.0;
-            // Hessian stencils (2 d² points), restarts' simplices, profiles and divergent points
-            generation(2.0 * d * d + 2.0 * d + 1.0) + restarts * generation(d + 1.0) + 16.0 * d * d * n + 4096.0
+            // Hessian stencils (2 d² points), restarts' simplices, profiles and divergent points,
+            // and every evaluation (point and cost) for the response surface
+            generation(2.0 * d * d + 2.0 * d + 1.0)
+                + restarts * generation(d + 1.0)
+                + 16.0 * d * d * n
+                + 2.0 * budget * (d + 1.0) * n
+                + 4096.0
         }
     }
 }

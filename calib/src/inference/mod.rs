@@ -48,8 +48,8 @@ pub use sensitivity::{
     PerturbationFailure, RankedParameter, Ranking, Sensitivity, SensitivityOptions, SensitivitySummary, Side,
 };
 pub use variance::{
-    DivergentPoint, GaussianApproximation, Interval, Profile, ProfilePoint, RestartSummary, Variance, VarianceOptions,
-    VarianceStage, VarianceSummary,
+    DivergentPoint, GaussianApproximation, Interval, Profile, ProfilePoint, ResponseSurface, RestartSummary,
+    SurfaceEstimate, Variance, VarianceOptions, VarianceStage, VarianceSummary,
 };
 
 /// Why an inference algorithm could not be built. Every variant names the algorithm and the value
