@@ -100,9 +100,15 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
         let (lo, hi) = (u["lower95"].as_f64().unwrap(), u["upper95"].as_f64().unwrap());
         assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {best})");
     }
-    assert_eq!(result["evaluations"].as_u64().unwrap(), 190);
+    // 190 less the variance stage's evaluation at its response surface's minimum, which it does
+    // not make here: the fitted quadratic's minimum lies beyond the points (the stage says so)
+    assert_eq!(result["evaluations"].as_u64().unwrap(), 189);
+    assert!(
+        stdout.contains("response surface minimum not used: the fitted quadratic's minimum lies outside"),
+        "{stdout}"
+    );
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
-    assert_eq!(evaluations.lines().count(), 191);
+    assert_eq!(evaluations.lines().count(), 190);
     assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes

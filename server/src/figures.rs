@@ -708,7 +708,7 @@ mod tests {
         }])
         .unwrap();
         let options = VarianceOptions { restarts: 0, profile_points: 0, ..VarianceOptions::default() };
-        let v = Variance::new(&space, Some(&[1.0 / 3.0]), options, 4, 1).unwrap();
+        let v = Variance::new(&space, Some(&[1.0 / 3.0]), options, 3, 1).unwrap();
         let mut alg = cryofit_calib::inference::InferenceAlgorithm::Variance(Box::new(v));
         cryofit_calib::api::minimize(&mut alg, 8, |u: &[f64]| {
             let x = u[0] - 1.0 / 3.0;

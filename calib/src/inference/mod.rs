@@ -38,6 +38,7 @@ use crate::exact;
 pub mod mcmc;
 pub mod nelder_mead;
 pub mod sensitivity;
+pub mod surface;
 pub mod variance;
 
 pub use compare::{ComparisonError, ComparisonRow, ModelComparison, ModelFit, aic, bic, laplace_log_evidence};
@@ -47,9 +48,10 @@ pub use sensitivity::{
     Difference, ElementaryEffects, FreeSelection, Morris, MorrisOptions, MorrisSummary, ParameterSensitivity,
     PerturbationFailure, RankedParameter, Ranking, Sensitivity, SensitivityOptions, SensitivitySummary, Side,
 };
+pub use surface::{ResponseSurface, SurfaceEstimate};
 pub use variance::{
-    DivergentPoint, GaussianApproximation, Interval, Profile, ProfilePoint, ResponseSurface, RestartSummary,
-    SurfaceEstimate, Variance, VarianceOptions, VarianceStage, VarianceSummary,
+    DivergentPoint, GaussianApproximation, Interval, Profile, ProfilePoint, RestartSummary, Variance, VarianceOptions,
+    VarianceStage, VarianceSummary,
 };
 
 /// Why an inference algorithm could not be built. Every variant names the algorithm and the value

@@ -69,13 +69,14 @@ impl Scheme<'_> {
         // only by the work of the other forces (−(Γ/2)(v_g² − v_l²) of work against the
         // ½ Γ (v_g² − v_l²) the transferred mass carries); any other v_I dissipates or creates
         // kinetic energy that the energy equations do not see. Γ is the old-time rate of
-        // the junction's cells (the mean of the two; a boundary junction's one cell). Each
+        // the junction's cells (the mean of the two; a boundary junction's one cell), with
+        // an evaporating interface's part depleted over the step (`Sources::momentum_gamma`). Each
         // part is implicit where it damps its own phase's velocity and explicit where it
         // drives it (for evaporation the liquid's own −(Γ/2)(−v_l), for condensation the
         // vapour's). Before, the liquid's term had the drag's sign (+(Γ/2)(v_g − v_l)),
         // which created Γ (v_g − v_l) v_l of kinetic energy.
         let gamma_j = {
-            let cell_gamma = |i: usize| sources[i].gamma.c0;
+            let cell_gamma = |i: usize| sources[i].momentum_gamma;
             match (j == 0, j == n) {
                 (true, _) => cell_gamma(0),
                 (_, true) => cell_gamma(n - 1),
