@@ -243,8 +243,13 @@ pub struct StageReport {
     pub failed_evaluations: usize,
     /// Parameters free during the stage.
     pub free: Vec<String>,
-    /// Best cost the stage found (`None` when every evaluation failed).
+    /// The stage's estimate's cost: its lowest evaluation's, or a variance stage's accepted
+    /// response-surface minimum's (`None` when every evaluation failed).
     pub best_cost: Option<f64>,
+    /// The stage's lowest evaluated cost (differs from `best_cost` when a response surface's
+    /// minimum is the estimate).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub lowest_cost: Option<f64>,
     /// Its parameters (all free parameters of the calibration, by name).
     pub best_parameters: BTreeMap<String, f64>,
     /// Why it stopped.
@@ -534,6 +539,7 @@ impl Pipeline {
             failed_evaluations: r.failed,
             free: names(&r.active),
             best_cost,
+            lowest_cost: r.best.as_ref().map(|(c, _, _)| *c),
             best_parameters,
             stop: stop.to_string(),
             details,

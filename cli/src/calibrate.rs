@@ -844,7 +844,13 @@ fn print_report(spec: &CalibrationSpec, run: &Run, fits: &[FitRow<'_>], out_dir:
         fmt_sig(run.best_cost)
     );
     for r in &run.reports {
-        let best = r.best_cost.map_or_else(|| "no successful evaluation".into(), |c| format!("best {}", fmt_sig(c)));
+        let best = match (r.best_cost, r.lowest_cost) {
+            (None, _) => "no successful evaluation".into(),
+            (Some(c), Some(low)) if low < c => {
+                format!("estimate {} (its response surface's minimum; lowest evaluation {})", fmt_sig(c), fmt_sig(low))
+            }
+            (Some(c), _) => format!("best {}", fmt_sig(c)),
+        };
         println!(
             "  stage {} {}: {} evaluations ({} failed), {best}, {} free; {}",
             r.index,

@@ -88,6 +88,14 @@ fn twin_experiment_recovers_a_known_loss_coefficient() {
     let (lo, hi) = (u["lower95"].as_f64().unwrap(), u["upper95"].as_f64().unwrap());
     assert!(lo <= TRUE_K && TRUE_K <= hi, "truth {TRUE_K} outside [{lo}, {hi}] (best {best})");
     assert!(stdout.contains("case.inlet.loss_coefficient = "), "{stdout}");
+    // the estimate is the variance stage's response-surface minimum, not its lowest evaluation
+    let variance = &result["stages"][1];
+    let (estimate, lowest) = (variance["best_cost"].as_f64().unwrap(), variance["lowest_cost"].as_f64().unwrap());
+    assert_eq!(variance["details"]["variance"]["surface"]["accepted"], true, "{variance}");
+    assert!(lowest <= estimate, "lowest {lowest}, estimate {estimate}");
+    if lowest < estimate {
+        assert!(stdout.contains("(its response surface's minimum; lowest evaluation "), "{stdout}");
+    }
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
     assert!(evaluations.starts_with("id,stage,algorithm,status,cost,case.inlet.loss_coefficient,reason\n"));
     let best_toml = std::fs::read_to_string(out_dir.join("best.toml")).unwrap();

@@ -726,6 +726,7 @@ mod tests {
             failed_evaluations: 0,
             free: vec!["Gwsc".into()],
             best_cost: Some(10.0),
+            lowest_cost: Some(10.0),
             best_parameters: BTreeMap::from([("Gwsc".to_string(), 1.0)]),
             stop: "converged".into(),
             details: Some(details),
