@@ -61,7 +61,7 @@ pub struct SurfaceEstimate {
     pub residual_rms: f64,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(Serialize, Deserialize))]
 pub(super) struct SurfaceRecord {
     pub(super) points: usize,
@@ -88,16 +88,7 @@ pub(super) fn fit_surface(
     radius: f64,
 ) -> SurfaceRecord {
     let d = centre.len();
-    let mut record = SurfaceRecord {
-        points: 0,
-        residual_rms: 0.0,
-        centre: None,
-        predicted: None,
-        id: None,
-        result: None,
-        accepted: false,
-        note: None,
-    };
+    let mut record = SurfaceRecord::default();
     // distinct points only: a simplex may evaluate one twice, which adds no information
     let mut seen = std::collections::BTreeSet::new();
     let near: Vec<(&[f64], f64)> = points
@@ -126,7 +117,7 @@ pub(super) fn fit_surface(
         }
     }
     let scale: Vec<f64> = (0..d).map(|i| lo[i].abs().max(hi[i])).collect();
-    if let Some(i) = scale.iter().position(|&s| s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)) {
+    if let Some(i) = scale.iter().position(|&s| s <= 0.0 || s.is_nan()) {
         record.note = Some(format!("no evaluation near the optimum moves {}", names[i]));
         return record;
     }
@@ -142,7 +133,8 @@ pub(super) fn fit_surface(
         }
         r
     };
-    let a = DMatrix::from_fn(near.len(), terms, |r, c| row(near[r].0)[c]);
+    let rows: Vec<Vec<f64>> = near.iter().map(|(p, _)| row(p)).collect();
+    let a = DMatrix::from_fn(near.len(), terms, |r, c| rows[r][c]);
     let b = nalgebra::DVector::from_iterator(near.len(), near.iter().map(|(_, c)| *c));
     let svd = a.clone().svd(true, true);
     let largest = svd.singular_values.max();
