@@ -122,9 +122,10 @@ fn coordinator_benchmark_reports_json() {
 
 /// `bench chaos` on the NBS subcooled case cut to 10 cells and 200 s (its station-4 chilldown
 /// comes at about 162 s): three runs at Gwsc one unit
-/// in the last place below, at and above its default, each with its station-4 chilldown, the range
-/// and the largest move consistent with them; and the errors for a parameter or station the case
-/// does not have.
+/// in the last place below, at and above its default, each with its station-4 chilldown, the range,
+/// mean, standard deviation and largest move consistent with them; the same runs with the grid and
+/// end given by `--set` on the full case; a `--set` of the perturbed parameter as the centre; and
+/// the errors for a parameter, station or case field the case does not take.
 #[test]
 fn chaos_reports_the_chilldown_of_each_perturbation() {
     let dir = std::env::temp_dir().join(format!("cryofit-bench-chaos-{}", std::process::id()));
@@ -150,6 +151,40 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
     let moved = times.iter().map(|t| (t - times[1]).abs()).fold(0.0, f64::max);
     assert_eq!(v["largest_move_s"].as_f64(), Some(moved));
     assert_eq!(v["target_met"], moved <= 1.0);
+    let mean = times.iter().sum::<f64>() / 3.0;
+    assert!((v["mean_s"].as_f64().unwrap() - mean).abs() < 1e-9 * mean);
+    let sd = (times.iter().map(|t| (t - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+    assert!((v["standard_deviation_s"].as_f64().unwrap() - sd).abs() <= 1e-9 * mean);
+
+    // the same runs from the full case with its grid and end set on the command line, and the
+    // perturbed parameter's centre moved by a --set of it
+    let out = run(&[
+        "bench",
+        "chaos",
+        "--case",
+        src,
+        "--param",
+        "Gwsc",
+        "--ulps",
+        "1",
+        "--set",
+        "case.pipe.cells=10",
+        "--set",
+        "case.time.end_s=200",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(w["runs"], v["runs"]);
+    assert_eq!(w["set"], serde_json::json!({"case.pipe.cells": 10.0, "case.time.end_s": 200.0}));
+    let out = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1", "--set", "Gwsc=0.5", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(w["value"], 0.5);
+    assert_eq!(w["runs"][1]["value"], 0.5);
+    let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--set", "case.pipe.cells=-3"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("cells"), "{}", String::from_utf8_lossy(&bad.stderr));
 
     let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsx"]);
     assert!(!bad.status.success());

@@ -1,10 +1,13 @@
-//! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--json]`: how far a
-//! run's chilldown moves when one parameter moves by a few units in the last place.
+//! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--set NAME=VALUE]...
+//! [--json]`: how far a run's chilldown moves when one parameter moves by a few units in the last
+//! place.
 //!
-//! The value of `NAME` in the case (its `[parameters]` entry or the registry default) is set to
-//! each of the 2N + 1 doubles from N below it to N above it, and the case is run with each (all
-//! cores). The report gives every run's chilldown time at the station and its steps, the range of
-//! the chilldowns and the largest move from the unperturbed run, held against the target of 1 s
+//! The value of `NAME` in the case (its `[parameters]` entry, a `--set` of it, or the registry
+//! default) is set to each of the 2N + 1 doubles from N below it to N above it, and the case is run
+//! with each (all cores). `--set` takes registry parameters and case fields as `cryofit simulate`
+//! does (`--set case.time.max_dt_s=0.002` measures the spread at shorter steps). The report gives
+//! every run's chilldown time at the station and its steps, the range, mean and standard deviation
+//! of the chilldowns and the largest move from the unperturbed run, held against the target of 1 s
 //! (issue "operating envelope": ten one-ulp perturbations of one closure value move the subcooled
 //! station-4 chilldown by at most 1 s). A perturbation that leaves the registry bounds, or a run
 //! that fails or never reaches the chilldown, is reported as such and counts as not meeting it.
@@ -20,6 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fluid_source;
+use crate::param_values::{ParamValues, apply_case_fields, experiment_of, parse_set};
 
 /// Largest move of the chilldown, s, that the target allows.
 const TARGET_S: f64 = 1.0;
@@ -42,6 +46,10 @@ pub struct ChaosArgs {
     /// The station whose chilldown is measured [default: the case's last station].
     #[arg(long, value_name = "NAME")]
     station: Option<String>,
+    /// Set a registry parameter, or a case field by its `case.` name (`case.time.max_dt_s=0.002`),
+    /// for every run (repeatable; a `--set` of the perturbed parameter moves its centre).
+    #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
+    set: Vec<String>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -68,8 +76,14 @@ struct Report {
     value: f64,
     station: String,
     runs: Vec<Run>,
+    /// The registry parameters and case fields set by `--set`, by name.
+    set: std::collections::BTreeMap<String, f64>,
     /// Smallest and largest chilldown of the runs that reached it, s.
     range_s: Option<(f64, f64)>,
+    /// Mean of the chilldowns of the runs that reached it, s.
+    mean_s: Option<f64>,
+    /// Their sample standard deviation, s (`None` below two runs).
+    standard_deviation_s: Option<f64>,
     /// Largest |chilldown − unperturbed chilldown| over the perturbed runs, s.
     largest_move_s: Option<f64>,
     target_s: f64,
@@ -99,7 +113,13 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     let path = args.case.display().to_string();
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {path}"))?;
     let case = Case::from_toml(&text, &path)?;
-    let base = driver::case_parameters(&case).map_err(|e| anyhow!("{path}: {e}"))?;
+    let sets = args.set.iter().map(|a| parse_set(a)).collect::<Result<Vec<ParamValues>>>()?;
+    let mut base = driver::case_parameters(&case).map_err(|e| anyhow!("{path}: {e}"))?;
+    for source in &sets {
+        base.overlay(&source.registry()?);
+    }
+    let experiment = experiment_of(&args.case, None);
+    let case = apply_case_fields(&case, &path, &experiment, &sets.iter().collect::<Vec<_>>())?.case;
     let value = base.try_get(&args.param).map_err(|e| anyhow!("--param: {e}"))?;
     if !(value.is_finite() && value != 0.0) {
         bail!("--param {}: its value in {path} is {value}; units in the last place need a nonzero value", args.param);
@@ -152,6 +172,7 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     let centre = runs.iter().find(|r| r.ulps == 0).and_then(|r| r.chilldown_s);
     let largest_move_s = centre.map(|c| times.iter().map(|t| (t - c).abs()).fold(0.0, f64::max));
     let all_reached = runs.iter().all(|r| r.chilldown_s.is_some());
+    let (mean_s, standard_deviation_s) = mean_and_deviation(&times);
     let report = Report {
         case: path.clone(),
         parameter: args.param.clone(),
@@ -159,7 +180,10 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
         station: station.clone(),
         target_met: all_reached && largest_move_s.is_some_and(|m| m <= TARGET_S),
         runs,
+        set: sets.iter().flat_map(|s| s.values.clone()).collect(),
         range_s,
+        mean_s,
+        standard_deviation_s,
         largest_move_s,
         target_s: TARGET_S,
         wall_time_s: clock.elapsed().as_secs_f64(),
@@ -172,9 +196,26 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     Ok(())
 }
 
+/// Mean and sample standard deviation of `xs` (`None` for an empty slice; no deviation below two).
+fn mean_and_deviation(xs: &[f64]) -> (Option<f64>, Option<f64>) {
+    if xs.is_empty() {
+        return (None, None);
+    }
+    let n = xs.len() as f64;
+    let mean = xs.iter().sum::<f64>() / n;
+    let sd = (xs.len() > 1).then(|| (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt());
+    (Some(mean), sd)
+}
+
 fn print_report(r: &Report) {
+    let set = if r.set.is_empty() {
+        String::new()
+    } else {
+        let list: Vec<String> = r.set.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        format!(" (with {})", list.join(", "))
+    };
     println!(
-        "{}: {} = {} moved by up to {} units in the last place; {} chilldown, {:.1} s",
+        "{}{set}: {} = {} moved by up to {} units in the last place; {} chilldown, {:.1} s",
         r.case,
         r.parameter,
         r.value,
@@ -194,7 +235,10 @@ fn print_report(r: &Report) {
     }
     match (r.range_s, r.largest_move_s) {
         (Some((lo, hi)), Some(m)) => println!(
-            "Chilldowns {lo:.3}–{hi:.3} s; largest move from the unperturbed run {m:.3} s (target ≤ {} s: {})",
+            "Chilldowns {lo:.3}–{hi:.3} s (mean {}, standard deviation {}); largest move from the unperturbed \
+             run {m:.3} s (target ≤ {} s: {})",
+            r.mean_s.map_or_else(|| "-".into(), |v| format!("{v:.3} s")),
+            r.standard_deviation_s.map_or_else(|| "-".into(), |v| format!("{v:.3} s")),
             r.target_s,
             if r.target_met { "met" } else { "not met" }
         ),
@@ -216,5 +260,14 @@ mod tests {
         assert_eq!(ulps_from(f64::MIN_POSITIVE, -(f64::MIN_POSITIVE.to_bits() as i64)), None);
         assert_eq!(ulps_from(0.0, 1), None);
         assert_eq!(ulps_from(f64::MAX, 1), None);
+    }
+
+    #[test]
+    fn mean_and_sample_deviation() {
+        assert_eq!(mean_and_deviation(&[]), (None, None));
+        assert_eq!(mean_and_deviation(&[3.0]), (Some(3.0), None));
+        let (m, sd) = mean_and_deviation(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(m, Some(2.5));
+        assert!((sd.unwrap() - (5.0f64 / 3.0).sqrt()).abs() < 1e-15);
     }
 }
