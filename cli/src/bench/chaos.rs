@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fluid_source;
-use crate::param_values::{ParamValues, apply_case_fields, experiment_of, parse_set};
+use crate::param_values::{ParamValues, apply_case_fields, experiment_of, parse_set, report_skipped};
 
 /// Largest move of the chilldown, s, that the target allows.
 const TARGET_S: f64 = 1.0;
@@ -119,7 +119,9 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
         base.overlay(&source.registry()?);
     }
     let experiment = experiment_of(&args.case, None);
-    let case = apply_case_fields(&case, &path, &experiment, &sets.iter().collect::<Vec<_>>())?.case;
+    let applied = apply_case_fields(&case, &path, &experiment, &sets.iter().collect::<Vec<_>>())?;
+    report_skipped(&applied.skipped, &experiment);
+    let case = applied.case;
     let value = base.try_get(&args.param).map_err(|e| anyhow!("--param: {e}"))?;
     if !(value.is_finite() && value != 0.0) {
         bail!("--param {}: its value in {path} is {value}; units in the last place need a nonzero value", args.param);
