@@ -177,6 +177,39 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
     let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(w["runs"], v["runs"]);
     assert_eq!(w["set"], serde_json::json!({"case.pipe.cells": 10.0, "case.time.end_s": 200.0}));
+    // per-experiment values apply to the experiment named (a later --set over an earlier one),
+    // and are skipped for another
+    let per = |experiment: &str| {
+        let out = run(&[
+            "bench",
+            "chaos",
+            "--case",
+            src,
+            "--param",
+            "Gwsc",
+            "--ulps",
+            "1",
+            "--set",
+            "case.time.end_s=150",
+            "--set",
+            "case.pipe.cells@short=10",
+            "--set",
+            "case.time.end_s@short=200",
+            "--experiment",
+            experiment,
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        (
+            serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    let (w, _) = per("short");
+    assert_eq!(w["runs"], v["runs"]);
+    let (w, stderr) = per("other");
+    assert!(stderr.contains("skipped case.pipe.cells@short"), "{stderr}");
+    assert!(w["runs"].as_array().unwrap().iter().all(|r| r["chilldown_s"].is_null()), "{w}");
     let out = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1", "--set", "Gwsc=0.5", "--json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

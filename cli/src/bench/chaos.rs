@@ -1,5 +1,5 @@
 //! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--set NAME=VALUE]...
-//! [--json]`: how far a run's chilldown moves when one parameter moves by a few units in the last
+//! [--experiment NAME] [--json]`: how far a run's chilldown moves when one parameter moves by a few units in the last
 //! place.
 //!
 //! The value of `NAME` in the case (its `[parameters]` entry, a `--set` of it, or the registry
@@ -50,6 +50,10 @@ pub struct ChaosArgs {
     /// for every run (repeatable; a `--set` of the perturbed parameter moves its centre).
     #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     set: Vec<String>,
+    /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
+    /// apply, other experiments' are skipped [default: the case file's stem].
+    #[arg(long, value_name = "NAME")]
+    experiment: Option<String>,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
@@ -118,7 +122,7 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     for source in &sets {
         base.overlay(&source.registry()?);
     }
-    let experiment = experiment_of(&args.case, None);
+    let experiment = experiment_of(&args.case, args.experiment.as_deref());
     let applied = apply_case_fields(&case, &path, &experiment, &sets.iter().collect::<Vec<_>>())?;
     report_skipped(&applied.skipped, &experiment);
     let case = applied.case;
