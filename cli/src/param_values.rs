@@ -22,6 +22,7 @@ use std::path::Path;
 use anyhow::{Context, Result, anyhow, bail};
 use cryofit_calib::apparatus;
 use cryofit_solver::case::Case;
+use cryofit_solver::driver;
 use cryofit_solver::params::ParameterSet;
 
 /// Named values from one source (`--params FILE` or a `--set`).
@@ -155,6 +156,35 @@ pub(crate) fn apply_case_fields(
         applied.skipped.extend(sorted.skipped);
     }
     Ok(applied)
+}
+
+/// The case and the parameter set of the run, with precedence `--set` > `--params` > the case's
+/// own `[parameters]` and fields > registry defaults; the case is taken as experiment
+/// `experiment` for per-experiment values. Per-experiment values of other experiments are
+/// reported on stderr ([`report_skipped`]). Returns the applied case fields, the parameter set and
+/// the sources (`--params`, then each `--set`) as read.
+pub(crate) fn case_parameters(
+    case: &Case,
+    case_path: &str,
+    experiment: &str,
+    params_file: Option<&Path>,
+    sets: &[String],
+) -> Result<(Applied, ParameterSet, Vec<ParamValues>)> {
+    let mut params = driver::case_parameters(case).map_err(|e| anyhow!("{case_path}: {e}"))?;
+    let mut sources = Vec::new();
+    if let Some(file) = params_file {
+        sources.push(read_params_file(file)?);
+    }
+    for arg in sets {
+        sources.push(parse_set(arg)?);
+    }
+    for source in &sources {
+        params.overlay(&source.registry()?);
+    }
+    let refs: Vec<&ParamValues> = sources.iter().collect();
+    let applied = apply_case_fields(case, case_path, experiment, &refs)?;
+    report_skipped(&applied.skipped, experiment);
+    Ok((applied, params, sources))
 }
 
 /// The experiment a case file is taken for: `--experiment`, or its file stem.

@@ -20,7 +20,7 @@ use rand_distr::{Distribution, Normal};
 use crate::csv_text::CsvText;
 use crate::fluid_source;
 use crate::output::{chilldown_pairs, fmt_num, fmt_sig, probes_csv, write_outputs};
-use crate::param_values::{Applied, ParamValues, apply_case_fields, parse_set, read_params_file, split_assignment};
+use crate::param_values::{case_parameters, split_assignment};
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
 use cryofit_calib::model::probes_dataset;
@@ -66,8 +66,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {case_path}"))?;
     let case = Case::from_toml(&text, &case_path)?;
     let experiment = crate::param_values::experiment_of(&args.case, args.experiment.as_deref());
-    let (applied, params) = parameters(&case, &case_path, &experiment, args.params.as_deref(), &args.set)?;
-    crate::param_values::report_skipped(&applied.skipped, &experiment);
+    let (applied, params, _) = case_parameters(&case, &case_path, &experiment, args.params.as_deref(), &args.set)?;
     let case = applied.case;
     let noise = parse_noise(&args.noise)?;
     let out_dir = match &args.out {
@@ -208,32 +207,6 @@ fn print_comparison(c: &Comparison) {
             prev = (t, d, m);
         }
     }
-}
-
-/// The case and the parameter set of the run, with precedence `--set` > `--params` > the case's
-/// own `[parameters]` and fields > registry defaults; the case is taken as experiment
-/// `experiment` for per-experiment values.
-fn parameters(
-    case: &Case,
-    case_path: &str,
-    experiment: &str,
-    params_file: Option<&Path>,
-    sets: &[String],
-) -> Result<(Applied, ParameterSet)> {
-    let mut params = driver::case_parameters(case).map_err(|e| anyhow!("{case_path}: {e}"))?;
-    let mut sources = Vec::new();
-    if let Some(file) = params_file {
-        sources.push(read_params_file(file)?);
-    }
-    for arg in sets {
-        sources.push(parse_set(arg)?);
-    }
-    for source in &sources {
-        params.overlay(&source.registry()?);
-    }
-    let refs: Vec<&ParamValues> = sources.iter().collect();
-    let applied = apply_case_fields(case, case_path, experiment, &refs)?;
-    Ok((applied, params))
 }
 
 /// `--noise QUANTITY=SIGMA` arguments as quantity → sigma.

@@ -138,9 +138,15 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
         .unwrap();
     let case = case.to_str().unwrap();
     let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).output().unwrap();
-    let out = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1", "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // `bench chaos --case CASE --param Gwsc --ulps 1 EXTRA... --json`: its report and stderr
+    let chaos = |case: &str, extra: &[&str]| {
+        let args = [&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1"], extra, &["--json"]].concat();
+        let out = run(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (report, String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (v, _) = chaos(case, &[]);
     assert_eq!(v["station"], "TS4");
     let runs = v["runs"].as_array().unwrap();
     let values: Vec<f64> = runs.iter().map(|r| r["value"].as_f64().unwrap()).collect();
@@ -158,61 +164,21 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
 
     // the same runs from the full case with its grid and end set on the command line, and the
     // perturbed parameter's centre moved by a --set of it
-    let out = run(&[
-        "bench",
-        "chaos",
-        "--case",
-        src,
-        "--param",
-        "Gwsc",
-        "--ulps",
-        "1",
-        "--set",
-        "case.pipe.cells=10",
-        "--set",
-        "case.time.end_s=200",
-        "--json",
-    ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (w, _) = chaos(src, &["--set", "case.pipe.cells=10", "--set", "case.time.end_s=200"]);
     assert_eq!(w["runs"], v["runs"]);
     assert_eq!(w["set"], serde_json::json!({"case.pipe.cells": 10.0, "case.time.end_s": 200.0}));
     // per-experiment values apply to the experiment named (a later --set over an earlier one),
     // and are skipped for another
     let per = |experiment: &str| {
-        let out = run(&[
-            "bench",
-            "chaos",
-            "--case",
-            src,
-            "--param",
-            "Gwsc",
-            "--ulps",
-            "1",
-            "--set",
-            "case.time.end_s=150",
-            "--set",
-            "case.pipe.cells@short=10",
-            "--set",
-            "case.time.end_s@short=200",
-            "--experiment",
-            experiment,
-            "--json",
-        ]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        (
-            serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap(),
-            String::from_utf8_lossy(&out.stderr).to_string(),
-        )
+        let sets = ["case.time.end_s=150", "case.pipe.cells@short=10", "case.time.end_s@short=200"];
+        chaos(src, &["--set", sets[0], "--set", sets[1], "--set", sets[2], "--experiment", experiment])
     };
     let (w, _) = per("short");
     assert_eq!(w["runs"], v["runs"]);
     let (w, stderr) = per("other");
     assert!(stderr.contains("skipped case.pipe.cells@short"), "{stderr}");
     assert!(w["runs"].as_array().unwrap().iter().all(|r| r["chilldown_s"].is_null()), "{w}");
-    let out = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--ulps", "1", "--set", "Gwsc=0.5", "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (w, _) = chaos(case, &["--set", "Gwsc=0.5"]);
     assert_eq!(w["value"], 0.5);
     assert_eq!(w["runs"][1]["value"], 0.5);
     let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--set", "case.pipe.cells=-3"]);

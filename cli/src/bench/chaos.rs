@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::fluid_source;
-use crate::param_values::{ParamValues, apply_case_fields, experiment_of, parse_set, report_skipped};
+use crate::param_values::{case_parameters, experiment_of};
 
 /// Largest move of the chilldown, s, that the target allows.
 const TARGET_S: f64 = 1.0;
@@ -117,14 +117,8 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     let path = args.case.display().to_string();
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {path}"))?;
     let case = Case::from_toml(&text, &path)?;
-    let sets = args.set.iter().map(|a| parse_set(a)).collect::<Result<Vec<ParamValues>>>()?;
-    let mut base = driver::case_parameters(&case).map_err(|e| anyhow!("{path}: {e}"))?;
-    for source in &sets {
-        base.overlay(&source.registry()?);
-    }
     let experiment = experiment_of(&args.case, args.experiment.as_deref());
-    let applied = apply_case_fields(&case, &path, &experiment, &sets.iter().collect::<Vec<_>>())?;
-    report_skipped(&applied.skipped, &experiment);
+    let (applied, base, sets) = case_parameters(&case, &path, &experiment, None, &args.set)?;
     let case = applied.case;
     let value = base.try_get(&args.param).map_err(|e| anyhow!("--param: {e}"))?;
     if !(value.is_finite() && value != 0.0) {
