@@ -254,6 +254,29 @@ mod tests {
         assert!(e.contains("give a case field as"), "{e}");
     }
 
+    /// Every parameter file beside the NBS runs (`examples/nbs/calibrated*.toml`, the `--params`
+    /// files of the validation) reads as `--params` reads it: registry names only, each value
+    /// within its registry bounds (a file copied from a calibration's `best.toml` must still be one
+    /// `cryofit simulate --params` accepts as the registry stands).
+    #[test]
+    fn every_example_parameter_file_reads_as_params() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/nbs");
+        let mut seen = Vec::new();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_name().unwrap().to_string_lossy().into_owned();
+            if !(name.starts_with("calibrated") && name.ends_with(".toml")) {
+                continue;
+            }
+            let values = read_params_file(&path).unwrap_or_else(|e| panic!("{e:#}"));
+            assert!(!values.values.is_empty(), "{name}: no parameters");
+            assert!(values.values.keys().all(|k| !apparatus::is_case_name(k)), "{name}: case fields");
+            seen.push(name);
+        }
+        seen.sort();
+        assert_eq!(seen, ["calibrated-regime.toml", "calibrated.toml"], "parameter files beside the runs");
+    }
+
     #[test]
     fn keys_are_quoted_where_toml_needs_it() {
         assert_eq!(toml_key("vm_coeff"), "vm_coeff");

@@ -340,31 +340,3 @@ fn station_4_chilldown_times_match_the_quoted_ones() {
     }
     assert!(failures.is_empty(), "chilldown times off by more than 10 %: {failures:?}");
 }
-
-/// Every parameter file beside the runs (`calibrated*.toml`, the `--params` files of the
-/// validation) names registry parameters only, each with a number inside its registry bounds:
-/// a file copied from a calibration's `best.toml` must still be one `cryofit simulate --params`
-/// accepts as the registry stands.
-#[test]
-fn every_example_parameter_file_holds_registry_values_within_their_bounds() {
-    use cryofit_solver::params::ParameterSet;
-    let mut seen = Vec::new();
-    for entry in std::fs::read_dir(NBS).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        if !(name.starts_with("calibrated") && name.ends_with(".toml")) {
-            continue;
-        }
-        let table: toml::Table =
-            toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert!(!table.is_empty(), "{name}: no parameters");
-        let mut set = ParameterSet::new();
-        for (key, value) in &table {
-            let v = value.as_float().unwrap_or_else(|| panic!("{name}: {key} is not a number"));
-            set.set(key, v).unwrap_or_else(|e| panic!("{name}: {e}"));
-        }
-        seen.push(name);
-    }
-    seen.sort();
-    assert_eq!(seen, ["calibrated-regime.toml", "calibrated.toml"], "parameter files beside the runs");
-}
