@@ -14,6 +14,9 @@
 //!
 //! `cryofit bench chaos --case CASE --param NAME [--ulps N]` measures how far a run's chilldown
 //! moves when one parameter moves by a few units in the last place (see [`chaos`]).
+//!
+//! `cryofit bench speed --case CASE [--case CASE]... [--repeats N] [--json]` measures how many
+//! times faster than physical time each case runs on one core (see [`speed`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -34,6 +37,7 @@ use crate::fluid_source;
 mod chaos;
 mod coordinator;
 mod envelope;
+mod speed;
 
 /// `cryofit bench` subcommands.
 #[derive(Debug, Subcommand)]
@@ -46,6 +50,8 @@ pub enum BenchCommand {
     Envelope(envelope::EnvelopeArgs),
     /// Chaos: a case's chilldown with one parameter moved by a few units in the last place.
     Chaos(chaos::ChaosArgs),
+    /// Speed: how many times faster than physical time cases run on one core.
+    Speed(speed::SpeedArgs),
 }
 
 /// Arguments of `cryofit bench robustness`.
@@ -72,6 +78,7 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
         BenchCommand::Coordinator(args) => coordinator::run(args),
         BenchCommand::Envelope(args) => envelope::run(args),
         BenchCommand::Chaos(args) => chaos::run(args),
+        BenchCommand::Speed(args) => speed::run(args),
     }
 }
 

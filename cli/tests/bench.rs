@@ -196,3 +196,91 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
     assert!(String::from_utf8_lossy(&bad.stderr).contains("has the stations TS1, TS2, TS3, TS4"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `bench speed` on two CI-sized NBS cases (10 cells, 20 s), two repeats each: per case the
+/// simulated time, steps, the wall time of each repeat and their median, the speed the median
+/// gives and what held the steps, consistent with each other and with `cryofit simulate`'s
+/// summary of the same run; the target held against the slowest case; a `--set` that moves the
+/// run; and the errors for bad arguments.
+#[test]
+fn speed_reports_each_case_against_the_target() {
+    let dir = std::env::temp_dir().join(format!("cryofit-bench-speed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut cases = Vec::new();
+    for name in ["saturated-2.5atm", "subcooled-4.2atm"] {
+        let src = format!("{}/../examples/nbs/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+        let text = std::fs::read_to_string(&src).unwrap();
+        assert!(text.contains("cells = 30") && text.contains("end_s = 1000.0"), "{name} changed: update this test");
+        let case = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &case,
+            text.replacen("cells = 30", "cells = 10", 1).replacen("end_s = 1000.0", "end_s = 20.0", 1),
+        )
+        .unwrap();
+        cases.push(case.to_str().unwrap().to_string());
+    }
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).output().unwrap();
+    let speed = |extra: &[&str]| {
+        let args =
+            [&["bench", "speed", "--case", &cases[0], "--case", &cases[1], "--repeats", "2"], extra, &["--json"]]
+                .concat();
+        let out = run(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let v = speed(&[]);
+    assert_eq!(v["repeats"], 2);
+    assert_eq!(v["target"], 5000.0);
+    assert!(v["failures"].as_array().unwrap().is_empty(), "{v}");
+    let measured = v["cases"].as_array().unwrap();
+    assert_eq!(measured.len(), 2);
+    let mut slowest = f64::INFINITY;
+    for (c, path) in measured.iter().zip(&cases) {
+        assert_eq!(c["case"], path.as_str());
+        assert_eq!(c["cells"], 10);
+        assert_eq!(c["simulated_s"], 20.0);
+        let walls: Vec<f64> = c["wall_times_s"].as_array().unwrap().iter().map(|w| w.as_f64().unwrap()).collect();
+        assert_eq!(walls.len(), 2);
+        let median = c["median_wall_s"].as_f64().unwrap();
+        assert!((median - 0.5 * (walls[0] + walls[1])).abs() <= 1e-12 * median, "{c}");
+        let s = c["speed"].as_f64().unwrap();
+        assert!((s - 20.0 / median).abs() <= 1e-9 * s, "{c}");
+        assert_eq!(c["target_met"], s >= 5000.0);
+        slowest = slowest.min(s);
+        let steps = c["steps"].as_u64().unwrap();
+        let held: u64 = c["step_limited_by"].as_object().unwrap().values().map(|n| n.as_u64().unwrap()).sum();
+        assert!(held > 0 && held <= steps, "{c}");
+        // the steps are those of `cryofit simulate` on the same case
+        let out_dir = dir.join(format!("sim-{}", c["steps"]));
+        let sim = run(&["simulate", path, "--out", out_dir.to_str().unwrap()]);
+        assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out_dir.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(summary["steps"], c["steps"]);
+        assert_eq!(summary["rejected_steps"], c["rejected_steps"]);
+    }
+    assert_eq!(v["slowest_speed"].as_f64(), Some(slowest));
+    assert_eq!(v["target_met"], slowest >= 5000.0);
+    // a target every case meets, and one none does
+    assert_eq!(speed(&["--target", "1"])["target_met"], true);
+    assert_eq!(speed(&["--target", "1e12"])["target_met"], false);
+    // a --set applies to every case and is reported
+    let w = speed(&["--set", "case.time.end_s=10"]);
+    assert_eq!(w["set"], serde_json::json!({"case.time.end_s": 10.0}));
+    assert!(w["cases"].as_array().unwrap().iter().all(|c| c["simulated_s"] == 10.0), "{w}");
+
+    for (args, needle) in [
+        (vec!["--repeats", "0"], "--repeats 0"),
+        (vec!["--target", "0"], "--target 0"),
+        (vec!["--set", "Gwsx=1"], "Gwsx"),
+    ] {
+        let out = run(&[&["bench", "speed", "--case", cases[0].as_str()], args.as_slice()].concat());
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{err}");
+    }
+    let out = run(&["bench", "speed", "--case", "/nonexistent/case.toml"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/case.toml"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
