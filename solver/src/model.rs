@@ -251,4 +251,9 @@ pub struct State {
     pub wetted: Vec<f64>,
     /// Saturation properties at the cell pressure (zeros where there is no saturation line).
     pub sat: Vec<crate::fluids::Saturation>,
+    /// Mass flow through the inlet and the outlet junction, both phases, kg/s in the +x
+    /// direction, as the mass equations of the step that ended at this state carried it (the
+    /// boundary's fluid the donor where it enters, the end cell's where it leaves); 0 at the
+    /// initial state.
+    pub boundary_mass_flow: [f64; 2],
 }

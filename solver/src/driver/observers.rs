@@ -432,21 +432,21 @@ fn bracket(nodes: &[f64], x: f64) -> (usize, usize, f64) {
     (l, r, f.clamp(0.0, 1.0))
 }
 
-/// Mass flow through junction `j` with donor-cell (upwind) densities, kg/s; the boundary
-/// junctions take their cell's densities.
+/// Mass flow through junction `j`, kg/s: inside the line with donor-cell (upwind) densities, the
+/// new-time donors of the step's mass equations; through a boundary junction the step's own
+/// flow ([`State::boundary_mass_flow`]), whose donor is the boundary's fluid where it enters.
+/// (Before, a boundary junction took its cell's densities both ways, which put the liquid an
+/// inlet takes from a reservoir at the inlet cell's void fraction: in the first minute of the
+/// saturated NBS nitrogen runs it read a net backflow into the dewar where the line was filling.)
 fn junction_mass_flow(s: &State, g: &Grid, j: usize) -> f64 {
     let n = g.n;
-    let donor = |v: f64| -> usize {
-        if j == 0 {
-            0
-        } else if j == n {
-            n - 1
-        } else if v >= 0.0 {
-            j - 1
-        } else {
-            j
-        }
-    };
+    if j == 0 {
+        return s.boundary_mass_flow[0];
+    }
+    if j == n {
+        return s.boundary_mass_flow[1];
+    }
+    let donor = |v: f64| if v >= 0.0 { j - 1 } else { j };
     let (ig, il) = (donor(s.v_g[j]), donor(s.v_l[j]));
     g.area_junction[j] * (s.m_g[ig] * s.v_g[j] + s.m_l[il] * s.v_l[j])
 }

@@ -279,6 +279,7 @@ impl<'a> Scheme<'a> {
         let mut budget = StepBudget::default();
         self.provisional_sources(st, w);
         self.mass_update(st, w, &next, &mut budget)?;
+        next.boundary_mass_flow = [budget.mass_in / st.dt, budget.mass_out / st.dt];
         self.dissipated_heat(st, w, &next);
         self.phase_volume_changes(st, w);
         self.work_consistency(st, w, &next);
