@@ -14,13 +14,16 @@
 //! machine's state, and instruction counts (`valgrind --tool=callgrind`) where a change must
 //! be measured free of noise.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver;
+use cryofit_solver::fluids::FluidTable;
+use cryofit_solver::params::ParameterSet;
 use serde::Serialize;
 
 use crate::fluid_source;
@@ -113,11 +116,11 @@ pub fn run(args: &SpeedArgs) -> Result<()> {
     let mut failures = Vec::new();
     let mut set = BTreeMap::new();
     for path in &args.cases {
-        let (speed, values) = measure(path, args)?;
-        set.extend(values);
-        match speed {
-            Ok(s) => cases.push(s),
-            Err(error) => failures.push(CaseFailure { case: path.display().to_string(), error }),
+        let setup = Setup::read(path, args)?;
+        set.extend(setup.values.clone());
+        match time_runs(&setup, args.repeats) {
+            Ok((summary, wall_times_s)) => cases.push(case_speed(setup, summary, wall_times_s, args.target)),
+            Err(error) => failures.push(CaseFailure { case: setup.name, error }),
         }
     }
     let slowest_speed = cases.iter().map(|c| c.speed).min_by(f64::total_cmp);
@@ -138,61 +141,73 @@ pub fn run(args: &SpeedArgs) -> Result<()> {
     Ok(())
 }
 
-/// Measures one case: its speed, or why it has none (a run that fails, repeats that disagree),
-/// and the values `--params` and `--set` gave. Errors in the files or arguments end the command.
-fn measure(path: &std::path::Path, args: &SpeedArgs) -> Result<(Result<CaseSpeed, String>, BTreeMap<String, f64>)> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
-    let case = Case::from_toml(&text, &name)?;
-    let experiment = experiment_of(path, None);
-    let (applied, params, sources) = case_parameters(&case, &name, &experiment, args.params.as_deref(), &args.set)?;
-    let values: BTreeMap<String, f64> = sources.iter().flat_map(|s| s.values.clone()).collect();
-    let case = applied.case;
-    let table = fluid_source::load(&case.fluid.name)?;
-    let mut wall_times_s = Vec::with_capacity(args.repeats);
-    let mut first: Option<driver::Summary> = None;
-    for repeat in 0..args.repeats {
-        let summary = match driver::run(&case, &table, &params, &mut |_| {}) {
-            Ok(out) => out.summary,
-            Err(e) => return Ok((Err(format!("run {} of {}: {e}", repeat + 1, args.repeats)), values)),
-        };
-        wall_times_s.push(summary.wall_time_s);
-        match &first {
-            Some(f) if (f.steps, f.rejected_steps) != (summary.steps, summary.rejected_steps) => {
-                let error = format!(
-                    "run {} took {} steps ({} rejected) where run 1 took {} ({}): the repeats are not the same \
-                     computation, so their times do not measure it",
-                    repeat + 1,
-                    summary.steps,
-                    summary.rejected_steps,
-                    f.steps,
-                    f.rejected_steps
-                );
-                return Ok((Err(error), values));
-            }
-            Some(_) => {}
-            None => first = Some(summary),
-        }
+/// One case ready to run: the case with its `--params` and `--set` case fields applied, its
+/// fluid's table, its parameters, and the values those options gave.
+struct Setup {
+    name: String,
+    case: Case,
+    table: Cow<'static, FluidTable>,
+    params: ParameterSet,
+    values: BTreeMap<String, f64>,
+}
+
+impl Setup {
+    /// Reads the case at `path` and applies the options; an error here (a file, a name or a value
+    /// the command cannot use) ends the command.
+    fn read(path: &Path, args: &SpeedArgs) -> Result<Self> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {name}"))?;
+        let case = Case::from_toml(&text, &name)?;
+        let experiment = experiment_of(path, None);
+        let (applied, params, sources) = case_parameters(&case, &name, &experiment, args.params.as_deref(), &args.set)?;
+        let values = sources.iter().flat_map(|s| s.values.clone()).collect();
+        let table = fluid_source::load(&applied.case.fluid.name)?;
+        Ok(Self { name, case: applied.case, table, params, values })
     }
-    let s = first.expect("at least one repeat");
+}
+
+/// Runs the case `repeats` times: the first run's summary and every run's integration time, or
+/// why the case has no speed (a run that fails, repeats whose step counts differ).
+fn time_runs(setup: &Setup, repeats: usize) -> Result<(driver::Summary, Vec<f64>), String> {
+    let run = |k: usize| {
+        driver::run(&setup.case, &setup.table, &setup.params, &mut |_| {})
+            .map(|out| out.summary)
+            .map_err(|e| format!("run {k} of {repeats}: {e}"))
+    };
+    let first = run(1)?;
+    let mut wall_times_s = vec![first.wall_time_s];
+    for k in 2..=repeats {
+        let s = run(k)?;
+        if (s.steps, s.rejected_steps) != (first.steps, first.rejected_steps) {
+            return Err(format!(
+                "run {k} took {} steps ({} rejected) where run 1 took {} ({}): the repeats are not the same \
+                 computation, so their times do not measure it",
+                s.steps, s.rejected_steps, first.steps, first.rejected_steps
+            ));
+        }
+        wall_times_s.push(s.wall_time_s);
+    }
+    Ok((first, wall_times_s))
+}
+
+/// The measurement of a case from its runs' summary and times.
+fn case_speed(setup: Setup, s: driver::Summary, wall_times_s: Vec<f64>, target: f64) -> CaseSpeed {
     let median_wall_s = median(&wall_times_s);
     let speed = s.simulated_time_s / median_wall_s;
-    let cells = case.pipe.cells;
-    let per_cell_step_us = median_wall_s / (s.steps.max(1) as f64 * cells.max(1) as f64) * 1e6;
-    let measured = CaseSpeed {
-        case: name,
+    let cells = setup.case.pipe.cells;
+    CaseSpeed {
+        case: setup.name,
         cells,
         simulated_s: s.simulated_time_s,
         steps: s.steps,
         rejected_steps: s.rejected_steps,
         step_limited_by: s.step_limited_by,
+        per_cell_step_us: median_wall_s / (s.steps.max(1) as f64 * cells.max(1) as f64) * 1e6,
         wall_times_s,
         median_wall_s,
         speed,
-        per_cell_step_us,
-        target_met: speed >= args.target,
-    };
-    Ok((Ok(measured), values))
+        target_met: speed >= target,
+    }
 }
 
 /// The median of a nonempty slice (the mean of the middle two for an even length).
