@@ -256,4 +256,8 @@ pub struct State {
     /// boundary's fluid the donor where it enters, the end cell's where it leaves); 0 at the
     /// initial state.
     pub boundary_mass_flow: [f64; 2],
+    /// The exit's resistance λ, 1/s, with which the step that ended at this state would have
+    /// held its exit exactly at the critical speed (0 where its flow stayed below it without
+    /// one; `scheme::choking`): the next step starts from it.
+    pub exit_resistance: f64,
 }

@@ -254,6 +254,7 @@ pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<Sta
         wetted: vec![0.0; n],
         sat: Vec::with_capacity(n),
         boundary_mass_flow: [0.0; 2],
+        exit_resistance: 0.0,
     };
     for i in 0..n {
         let x = grid.x_cell[i];

@@ -262,18 +262,25 @@ impl<'a> Scheme<'a> {
     /// The phases of a step in order (see the module documentation), passing their results on
     /// in the work arrays `w`. The first phase that fails rejects the step.
     fn phases(&self, st: &StepInput, w: &mut Work) -> Result<(State, StepReport), Rejection> {
-        // step 1: provisional velocities, the pressure equation, the new velocities
+        // step 1: provisional velocities, the pressure equation, the new velocities; a checked
+        // exit starts from the resistance the last step left it (`choking.rs`)
         self.old_time_sources(st, w);
-        let mut next = self.step_one(st, w)?;
-        // a choked exit: step 1 again with the exit's resistance (`choking.rs`)
+        let exit = self.exit_criterion(st);
         let mut choked = *st;
-        if let Some(exit) = self.exit_criterion(st) {
+        choked.choke = if exit.is_some() { st.s.exit_resistance } else { 0.0 };
+        let mut next = self.step_one(&choked, w)?;
+        // a choked exit: step 1 again with the exit's resistance (`choking.rs`)
+        if let Some(exit) = exit {
             for _ in 0..MAX_CHOKE_PASSES {
                 let Some(choke) = self.exit_choke(&exit, &choked, w, &next) else { break };
                 choked.choke = choke;
                 next = self.step_one(&choked, w)?;
             }
         }
+        next.exit_resistance = match exit {
+            Some(exit) => self.exit_resistance(&exit, &choked, w, &next).unwrap_or(choked.choke),
+            None => 0.0,
+        };
         let st = &choked;
         // step 2: the conservative masses and energies with the new velocities
         let mut budget = StepBudget::default();
@@ -360,7 +367,7 @@ struct StepInput<'s> {
     /// The outlet boundary's pressure change over the step, Pa.
     dp_out: f64,
     /// The choked exit's resistance λ, 1/s: λ α_k ρ_k v_k on each phase at the exit junction
-    /// (0 unless the step's first pass found the exit choked; `choking.rs`).
+    /// (the last step's at the first pass, 0 where the exit is not checked; `choking.rs`).
     choke: f64,
 }
 
