@@ -37,11 +37,12 @@
 //! the step after took the extra pass again: nitrogen saturated at 11 atm, choked at its exit
 //! after its chilldown, alternated three and two passes (λ 9.97 and 6.14 1/s, 0.3 % and 0.9 %
 //! above a) on every other step, its exit cell's volume error with them (1.4e-3 and 2e-4), which
-//! held its steps to 35 ms for the rest of the run (10 469 steps for 300 s; 6 454 now). Started
+//! held its steps to 35 ms for the rest of the run (10 450 steps for 300 s; 6 445 now). Started
 //! from the last step's own λ, the velocity drifted to the band's edge and λ jumped back, a
 //! kick to the exit cell's pressure each time (methane saturated at 3 atm with
-//! `calibrated.toml`: 5 696 steps against 4 892); started from the λ that would have held the
-//! last step at a, λ follows the exit's state from step to step and a further pass is rare. A resistance rather than a prescribed velocity, so that the work the pressure
+//! `calibrated.toml`: 16 % more steps than without a warm start); started from the λ that would
+//! have held the last step at a, λ follows the exit's state from step to step and a further
+//! pass is rare. A resistance rather than a prescribed velocity, so that the work the pressure
 //! drop across the exit does beyond what the choked flow's kinetic energy takes is booked as
 //! heat like every other force's (the momentum equations' energy bookkeeping,
 //! [`booked_heat`](super::momentum)): a prescribed exit velocity, tried first, left the
