@@ -91,15 +91,9 @@ fn liquid_near_its_superheat_limit_flashes() {
 /// The NBS line of the envelope: `fluid` at 11 atm over the local atmosphere (1 197 662 Pa),
 /// entering at `inlet_k`, the line and its gas at 290 K.
 fn envelope_11atm(fluid: &str, inlet_k: f64, end_s: f64) -> Case {
-    envelope_line(fluid, 1_197_662.0, inlet_k, end_s)
-}
-
-/// The NBS line of the envelope: `fluid` from a dewar at `dewar_pa`, entering at `inlet_k`, the
-/// line and its gas at 290 K.
-fn envelope_line(fluid: &str, dewar_pa: f64, inlet_k: f64, end_s: f64) -> Case {
     let mut case = nbs("subcooled-4.2atm");
     case.fluid.name = fluid.to_string();
-    case.inlet.pressure_pa = Some(Profile::Constant(dewar_pa));
+    case.inlet.pressure_pa = Some(Profile::Constant(1_197_662.0));
     case.inlet.temperature_k = Some(Profile::Constant(inlet_k));
     case.initial.gas_temperature_k = Profile::Constant(290.0);
     case.initial.wall_temperature_k = Profile::Constant(290.0);

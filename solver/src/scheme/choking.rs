@@ -129,7 +129,7 @@ impl Scheme<'_> {
         let r = d * v;
         let excess = |lambda: f64| -> Option<f64> {
             let v = (d + m * (lambda - lambda0)).try_inverse()? * r;
-            Some(exit.weights.0 * v[0] + exit.weights.1 * v[1] - speed)
+            Some(exit.weighted(v[0], v[1]) - speed)
         };
         let (mut lo, mut hi) = if now > speed {
             // bracket: from the block's own inertia per unit mass, quadrupled until the
@@ -180,9 +180,14 @@ pub(super) struct ExitCriterion {
 }
 
 impl ExitCriterion {
-    /// The criterion's weighted velocity w_g v_g + w_l v_l at the exit junction `n` of `next`.
+    /// The criterion's weighted velocity w_g v_g + w_l v_l of the phase velocities `v_g`, `v_l`.
+    fn weighted(&self, v_g: f64, v_l: f64) -> f64 {
+        self.weights.0 * v_g + self.weights.1 * v_l
+    }
+
+    /// The criterion's weighted velocity at the exit junction `n` of `next`.
     pub(super) fn velocity(&self, next: &State, n: usize) -> f64 {
-        self.weights.0 * next.v_g[n] + self.weights.1 * next.v_l[n]
+        self.weighted(next.v_g[n], next.v_l[n])
     }
 }
 
