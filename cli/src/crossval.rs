@@ -382,6 +382,7 @@ fn predict_left_out(
         noise: Vec::new(),
         seed: 0,
         data: Some(data_path.clone()),
+        step_log: false,
     })?;
     let summary: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(best_dir.join("summary.json")).context("cannot read the prediction's summary.json")?,

@@ -1,5 +1,5 @@
 //! `cryofit simulate CASE.toml [--out DIR] [--set NAME=VALUE]... [--params FILE.toml]
-//! [--experiment NAME] [--noise QUANTITY=SIGMA]... [--seed N]`.
+//! [--experiment NAME] [--noise QUANTITY=SIGMA]... [--seed N] [--data DATA.csv] [--step-log]`.
 //!
 //! `--set` and `--params` take registry parameters and case fields (`case.<path>`; see
 //! [`crate::param_values`] for the forms and the precedence).
@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use cryofit_solver::case::Case;
-use cryofit_solver::driver::{self, Observation, Output, ProfilePoint, Progress};
+use cryofit_solver::driver::{self, Observation, Output, ProfilePoint, Progress, StepAttempt};
 use cryofit_solver::params::ParameterSet;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -58,6 +58,10 @@ pub struct SimulateArgs {
     /// summary.json as `fit`.
     #[arg(long, value_name = "DATA.csv")]
     pub(crate) data: Option<PathBuf>,
+    /// Also write steps.csv: every attempt at a step, accepted or rejected, with what limited or
+    /// rejected it (written for a run that fails too, up to its failure).
+    #[arg(long)]
+    pub(crate) step_log: bool,
 }
 
 /// Runs a case and writes `probes.csv`, `profiles.csv` and `summary.json`.
@@ -112,9 +116,26 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     };
 
     let mut bar = RunProgress::new();
-    let result = driver::run(&case, &table, &params, &mut |p| bar.update(p));
+    let mut attempts: Vec<StepAttempt> = Vec::new();
+    let result = if args.step_log {
+        driver::run_logged(&case, &table, &params, &mut |p| bar.update(p), &mut |a| attempts.push(a))
+    } else {
+        driver::run(&case, &table, &params, &mut |p| bar.update(p))
+    };
     bar.clear();
-    let mut output = result.with_context(|| format!("{case_path}: simulation failed"))?;
+    let mut output = match result {
+        Ok(output) => output,
+        Err(e) if args.step_log => {
+            write_outputs(&out_dir, &[("steps.csv", steps_csv(&attempts)?)])?;
+            let steps = out_dir.join("steps.csv");
+            return Err(anyhow!(e)).context(format!(
+                "{case_path}: simulation failed (its {} step attempts up to the failure are in {})",
+                attempts.len(),
+                steps.display()
+            ));
+        }
+        Err(e) => return Err(anyhow!(e)).context(format!("{case_path}: simulation failed")),
+    };
 
     add_noise(&mut output.probes, &noise, args.seed);
     let comparison = match &data {
@@ -123,14 +144,15 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     };
     let summary =
         summary_json(&output, &case_path, &params, &applied.case_fields, &noise, args.seed, comparison.as_ref())?;
-    write_outputs(
-        &out_dir,
-        &[
-            ("probes.csv", probes_csv(&output.probes)?),
-            ("profiles.csv", profiles_csv(&output.profiles)?),
-            ("summary.json", summary),
-        ],
-    )?;
+    let mut files = vec![
+        ("probes.csv", probes_csv(&output.probes)?),
+        ("profiles.csv", profiles_csv(&output.profiles)?),
+        ("summary.json", summary),
+    ];
+    if args.step_log {
+        files.push(("steps.csv", steps_csv(&attempts)?));
+    }
+    write_outputs(&out_dir, &files)?;
     print_summary(&case, &case_path, &output, &params, &applied.case_fields, &noise, args.seed, &out_dir);
     if let Some(c) = &comparison {
         print_comparison(c);
@@ -259,6 +281,27 @@ fn profiles_csv(profiles: &[ProfilePoint]) -> Result<String> {
     let mut t = CsvText::new(["time_s", "x_m", "quantity", "value"])?;
     for p in profiles {
         t.row([&fmt_num(p.time_s), &fmt_num(p.x_m), p.quantity, &fmt_num(p.value)])?;
+    }
+    t.finish()
+}
+
+/// `steps.csv`: one row per attempt at a step, in the order made. `variable`, `index` and
+/// `value` are, for an accepted step, what came closest to its limit (the cell, or junction for a
+/// velocity) and the step's change ratio; for a rejected one, what rejected it and its value,
+/// with the reason.
+fn steps_csv(attempts: &[StepAttempt]) -> Result<String> {
+    let mut t = CsvText::new(["time_s", "dt_s", "outcome", "variable", "index", "value", "reason"])?;
+    for a in attempts {
+        let outcome = if a.accepted { "accepted" } else { "rejected" };
+        t.row([
+            &fmt_num(a.time_s),
+            &fmt_num(a.dt_s),
+            outcome,
+            a.variable,
+            &a.index.to_string(),
+            &fmt_num(a.value),
+            a.reason,
+        ])?;
     }
     t.finish()
 }

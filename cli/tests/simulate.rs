@@ -405,3 +405,88 @@ fn data_compares_the_run_with_measurements() {
     assert!(!out_dir.exists(), "a refused comparison wrote {}", out_dir.display());
     assert_one_line_error(&["simulate", case.as_str(), "--data", "/nonexistent/data.csv"], &["--data", "data.csv"]);
 }
+
+/// `steps.csv` rows split into fields (header checked and excluded).
+fn step_rows(dir: &Path) -> Vec<Vec<String>> {
+    let text = read(&dir.join("steps.csv"));
+    let mut reader = csv::Reader::from_reader(text.as_bytes());
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(header, ["time_s", "dt_s", "outcome", "variable", "index", "value", "reason"]);
+    reader.records().map(|r| r.unwrap().iter().map(String::from).collect()).collect()
+}
+
+const NBS_SUBCOOLED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
+
+#[test]
+fn step_log_lists_every_attempt_as_the_summary_counts_them() {
+    let tmp = Scratch::new("step-log");
+    let out_dir = tmp.path("results");
+    // 10 cells, the first 2 s: the first-contact surge rejects steps
+    let args = ["simulate", NBS_SUBCOOLED, "--set", "case.pipe.cells=10", "--set", "case.time.end_s=2", "--step-log"];
+    let out = cryofit(&[&args[..], &["--out", out_dir.to_str().unwrap()]].concat());
+    assert_success(&out);
+    let s = summary(&out_dir);
+    let rows = step_rows(&out_dir);
+    let accepted: Vec<&Vec<String>> = rows.iter().filter(|r| r[2] == "accepted").collect();
+    let rejected: Vec<&Vec<String>> = rows.iter().filter(|r| r[2] == "rejected").collect();
+    assert_eq!(accepted.len() + rejected.len(), rows.len(), "an outcome is neither accepted nor rejected");
+    assert_eq!(accepted.len() as u64, s["steps"].as_u64().unwrap());
+    assert_eq!(rejected.len() as u64, s["rejected_steps"].as_u64().unwrap());
+    assert!(!rejected.is_empty(), "the case no longer rejects a step: choose one that does");
+    // the accepted steps add up to the run, each starting where the one before ended
+    let num = |r: &Vec<String>, k: usize| -> f64 { r[k].parse().unwrap() };
+    let mut t = 0.0;
+    for r in &accepted {
+        assert!((num(r, 0) - t).abs() <= 1e-9, "step at {} after the run reached {t}", r[0]);
+        t = num(r, 0) + num(r, 1);
+        assert!((0.0..=1.0).contains(&num(r, 5)), "change ratio {} of an accepted step", r[5]);
+        assert!(r[6].is_empty());
+    }
+    assert!((t - s["simulated_time_s"].as_f64().unwrap()).abs() <= 1e-9);
+    // what limited and what rejected the steps, as the summary counts them
+    let mut limited = std::collections::BTreeMap::<String, u64>::new();
+    for r in &accepted {
+        *limited.entry(r[3].clone()).or_default() += 1;
+    }
+    let counted: std::collections::BTreeMap<String, u64> =
+        serde_json::from_value(s["step_limited_by"].clone()).unwrap();
+    assert_eq!(limited, counted);
+    let mut causes = std::collections::BTreeMap::<String, u64>::new();
+    for r in &rejected {
+        *causes.entry(format!("{}: {}", r[3], r[6])).or_default() += 1;
+    }
+    let counted: std::collections::BTreeMap<String, u64> =
+        serde_json::from_value(s["rejection_causes"].clone()).unwrap();
+    assert_eq!(causes, counted);
+    // a rejected step is retried shorter from the same time
+    for (k, r) in rows.iter().enumerate().filter(|(_, r)| r[2] == "rejected") {
+        let retry = &rows[k + 1];
+        assert_eq!(retry[0], r[0]);
+        assert!(num(retry, 1) < num(r, 1));
+    }
+}
+
+#[test]
+fn step_log_of_a_failed_run_holds_its_steps_up_to_the_failure() {
+    let tmp = Scratch::new("step-log-failed");
+    let out_dir = tmp.path("results");
+    let out = cryofit(&[
+        "simulate",
+        NBS_SUBCOOLED,
+        "--set",
+        "case.pipe.cells=10",
+        "--set",
+        "case.time.max_steps=40",
+        "--step-log",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(err.contains("max_steps") && err.contains("steps.csv"), "{err}");
+    let rows = step_rows(&out_dir);
+    assert_eq!(rows.iter().filter(|r| r[2] == "accepted").count(), 40);
+    // only the step log: no probes, profiles or summary of a run that did not finish
+    assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 1);
+}

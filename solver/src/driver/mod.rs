@@ -177,6 +177,29 @@ pub struct Output {
     pub final_state: State,
 }
 
+/// One attempt at a step, accepted or rejected, as [`run_logged`] reports it: what held the run's
+/// steps down, and when (the summary's `step_limited_by` and `rejection_causes` count the same
+/// over the whole run).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepAttempt {
+    /// Time at the start of the step, s.
+    pub time_s: f64,
+    /// The step tried, s.
+    pub dt_s: f64,
+    /// Whether the scheme accepted the step (a rejected one is retried shorter from `time_s`).
+    pub accepted: bool,
+    /// Accepted: the controlled variable that came closest to its limit. Rejected: the variable
+    /// that rejected the step.
+    pub variable: &'static str,
+    /// The cell of `variable` (the junction, for a velocity).
+    pub index: usize,
+    /// Accepted: the step's change ratio (the largest change of a controlled variable, or volume
+    /// error, as a fraction of its limit; ≤ 1). Rejected: the value that rejected it.
+    pub value: f64,
+    /// Rejected: why; accepted: empty.
+    pub reason: &'static str,
+}
+
 /// Progress of a run, for a progress bar.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Progress {
@@ -322,6 +345,18 @@ pub fn run(
     params: &ParameterSet,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Output, SimError> {
+    run_logged(case, fluid, params, progress, &mut |_| {})
+}
+
+/// [`run`], reporting every attempt at a step, accepted or rejected, to `log` as it is made (so
+/// that a run that fails has reported the steps that led to its failure).
+pub fn run_logged(
+    case: &Case,
+    fluid: &FluidTable,
+    params: &ParameterSet,
+    progress: &mut dyn FnMut(Progress),
+    log: &mut dyn FnMut(StepAttempt),
+) -> Result<Output, SimError> {
     let grid = Grid::from_case(case);
     let mut s = initial_state(case, fluid, &grid)?;
     let physics = physics_of(case, params, fluid);
@@ -348,7 +383,7 @@ pub fn run(
         check_limits(t, controller.steps(), &clock, s.time)?;
         // the steps land on the end time only: the outputs between are interpolated
         // (`observers::weight_at` says why)
-        let (mut next, h, report) = advance(&mut scheme, &mut controller, &s, end, &boundaries)?;
+        let (mut next, h, report) = advance(&mut scheme, &mut controller, &s, end, &boundaries, log)?;
         observers.iter_mut().for_each(|o| o.on_step(h, &report));
         // a step that lands on the end to within rounding lands on it exactly
         if (next.time - end).abs() <= eps {
@@ -395,13 +430,14 @@ pub fn run(
 
 /// One accepted step from `s`: the step the controller proposes towards `target`, tried again
 /// at the smaller size the controller gives after each rejection. Returns the new state, the
-/// step taken and the scheme's report.
+/// step taken and the scheme's report. Every attempt, accepted or rejected, goes to `log`.
 fn advance(
     scheme: &mut Scheme,
     controller: &mut StepController,
     s: &State,
     target: f64,
     boundaries: &Boundaries,
+    log: &mut dyn FnMut(StepAttempt),
 ) -> Result<(State, f64, StepReport), SimError> {
     let mut h = controller.propose(s, &scheme.grid, target);
     let b0 = boundaries.at(s.time)?;
@@ -409,10 +445,30 @@ fn advance(
         let b1 = boundaries.at(s.time + h)?;
         match scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]]) {
             Ok((next, report)) => {
+                log(StepAttempt {
+                    time_s: s.time,
+                    dt_s: h,
+                    accepted: true,
+                    variable: report.limiting,
+                    index: report.limiting_index,
+                    value: report.change_ratio,
+                    reason: "",
+                });
                 controller.accept(h, &report);
                 return Ok((next, h, report));
             }
-            Err(rejection) => h = controller.reject(h, rejection, s.time)?,
+            Err(rejection) => {
+                log(StepAttempt {
+                    time_s: s.time,
+                    dt_s: h,
+                    accepted: false,
+                    variable: rejection.variable,
+                    index: rejection.cell,
+                    value: rejection.value,
+                    reason: rejection.reason,
+                });
+                h = controller.reject(h, rejection, s.time)?;
+            }
         }
     }
 }
