@@ -123,19 +123,19 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         driver::run(&case, &table, &params, &mut |p| bar.update(p))
     };
     bar.clear();
-    let mut output = match result {
-        Ok(output) => output,
-        Err(e) if args.step_log => {
-            write_outputs(&out_dir, &[("steps.csv", steps_csv(&attempts)?)])?;
-            let steps = out_dir.join("steps.csv");
-            return Err(anyhow!(e)).context(format!(
+    if result.is_err() && args.step_log {
+        // the steps that led to the failure are what the log is for
+        write_outputs(&out_dir, &[("steps.csv", steps_csv(&attempts)?)])?;
+        let steps = out_dir.join("steps.csv");
+        return result.map(|_| ()).with_context(|| {
+            format!(
                 "{case_path}: simulation failed (its {} step attempts up to the failure are in {})",
                 attempts.len(),
                 steps.display()
-            ));
-        }
-        Err(e) => return Err(anyhow!(e)).context(format!("{case_path}: simulation failed")),
-    };
+            )
+        });
+    }
+    let mut output = result.with_context(|| format!("{case_path}: simulation failed"))?;
 
     add_noise(&mut output.probes, &noise, args.seed);
     let comparison = match &data {
