@@ -17,7 +17,7 @@ use crate::case::{BoundaryKind, Case, TimeSection};
 use crate::fluids::{FluidError, FluidTable, Phase};
 use crate::model::{BoundaryState, Grid, State, boundary_state, clamp_to_phase};
 use crate::params::ParameterSet;
-use crate::scheme::{Physics, Scheme, StepReport};
+use crate::scheme::{Physics, Rejection, Scheme, StepReport};
 
 pub use control::{StepControl, StepController};
 use observers::{EnergyBudget, FrontArrivals, OutputClock, ProbeRecorder, ProfileRecorder, RunObserver, Station};
@@ -198,6 +198,20 @@ pub struct StepAttempt {
     pub value: f64,
     /// Rejected: why; accepted: empty.
     pub reason: &'static str,
+}
+
+impl StepAttempt {
+    /// The accepted step of `dt_s` from `time_s` with the scheme's `report` of it.
+    fn accepted(time_s: f64, dt_s: f64, report: &StepReport) -> Self {
+        let (variable, index, value) = (report.limiting, report.limiting_index, report.change_ratio);
+        Self { time_s, dt_s, accepted: true, variable, index, value, reason: "" }
+    }
+
+    /// The step of `dt_s` from `time_s` that the scheme rejected with `rejection`.
+    fn rejected(time_s: f64, dt_s: f64, rejection: &Rejection) -> Self {
+        let Rejection { cell, variable, value, reason } = *rejection;
+        Self { time_s, dt_s, accepted: false, variable, index: cell, value, reason }
+    }
 }
 
 /// Progress of a run, for a progress bar.
@@ -445,28 +459,12 @@ fn advance(
         let b1 = boundaries.at(s.time + h)?;
         match scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]]) {
             Ok((next, report)) => {
-                log(StepAttempt {
-                    time_s: s.time,
-                    dt_s: h,
-                    accepted: true,
-                    variable: report.limiting,
-                    index: report.limiting_index,
-                    value: report.change_ratio,
-                    reason: "",
-                });
+                log(StepAttempt::accepted(s.time, h, &report));
                 controller.accept(h, &report);
                 return Ok((next, h, report));
             }
             Err(rejection) => {
-                log(StepAttempt {
-                    time_s: s.time,
-                    dt_s: h,
-                    accepted: false,
-                    variable: rejection.variable,
-                    index: rejection.cell,
-                    value: rejection.value,
-                    reason: rejection.reason,
-                });
+                log(StepAttempt::rejected(s.time, h, &rejection));
                 h = controller.reject(h, rejection, s.time)?;
             }
         }
