@@ -124,7 +124,8 @@ fn coordinator_benchmark_reports_json() {
 /// comes at about 162 s): three runs at Gwsc one unit
 /// in the last place below, at and above its default, each with its station-4 chilldown, the range,
 /// mean, standard deviation and largest move consistent with them; the same runs with the grid and
-/// end given by `--set` on the full case; a `--set` of the perturbed parameter as the centre; and
+/// end given by `--set` on the full case; a `--set` of the perturbed parameter as the centre, and a
+/// `--params` file's; and
 /// the errors for a parameter, station or case field the case does not take.
 #[test]
 fn chaos_reports_the_chilldown_of_each_perturbation() {
@@ -181,6 +182,18 @@ fn chaos_reports_the_chilldown_of_each_perturbation() {
     let (w, _) = chaos(case, &["--set", "Gwsc=0.5"]);
     assert_eq!(w["value"], 0.5);
     assert_eq!(w["runs"][1]["value"], 0.5);
+    // a --params file: its values for every run, its value of the perturbed parameter the
+    // centre, its case fields applied, a --set over it; the same runs as the --set above
+    let file = dir.join("point.toml");
+    std::fs::write(&file, "Gwsc = 0.5\ncase.time.end_s = 150.0\n").unwrap();
+    let file = file.to_str().unwrap();
+    let (p, _) = chaos(case, &["--params", file, "--set", "case.time.end_s=200"]);
+    assert_eq!(p["params"], file);
+    assert_eq!(p["set"], serde_json::json!({"Gwsc": 0.5, "case.time.end_s": 200.0}));
+    assert_eq!(p["runs"], w["runs"]);
+    let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--params", "/nonexistent/point.toml"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("/nonexistent/point.toml"));
     let bad = run(&["bench", "chaos", "--case", case, "--param", "Gwsc", "--set", "case.pipe.cells=-3"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("cells"), "{}", String::from_utf8_lossy(&bad.stderr));

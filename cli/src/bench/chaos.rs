@@ -1,11 +1,12 @@
-//! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--set NAME=VALUE]...
-//! [--experiment NAME] [--json]`: how far a run's chilldown moves when one parameter moves by a few units in the last
+//! `cryofit bench chaos --case CASE --param NAME [--ulps N] [--station NAME] [--params FILE]
+//! [--set NAME=VALUE]... [--experiment NAME] [--json]`: how far a run's chilldown moves when one parameter moves by a few units in the last
 //! place.
 //!
-//! The value of `NAME` in the case (its `[parameters]` entry, a `--set` of it, or the registry
-//! default) is set to each of the 2N + 1 doubles from N below it to N above it, and the case is run
-//! with each (all cores). `--set` takes registry parameters and case fields as `cryofit simulate`
-//! does (`--set case.time.max_dt_s=0.002` measures the spread at shorter steps). The report gives
+//! The value of `NAME` in the case (its `[parameters]` entry, the `--params` file's or a `--set`
+//! of it, or the registry default) is set to each of the 2N + 1 doubles from N below it to N above
+//! it, and the case is run with each (all cores). `--params` and `--set` take registry parameters
+//! and case fields as `cryofit simulate` does (`--params examples/nbs/calibrated.toml` measures the
+//! spread at a calibrated point, `--set case.time.max_dt_s=0.002` at shorter steps). The report gives
 //! every run's chilldown time at the station and its steps, the range, mean and standard deviation
 //! of the chilldowns and the largest move from the unperturbed run, held against the target of 1 s
 //! (issue "operating envelope": ten one-ulp perturbations of one closure value move the subcooled
@@ -46,8 +47,14 @@ pub struct ChaosArgs {
     /// The station whose chilldown is measured [default: the case's last station].
     #[arg(long, value_name = "NAME")]
     station: Option<String>,
+    /// A parameter file (`cryofit simulate --params`: a calibration's `best.toml`, say): its
+    /// registry parameters and `case.` fields for every run (a value of the perturbed parameter
+    /// moves its centre).
+    #[arg(long, value_name = "FILE")]
+    params: Option<PathBuf>,
     /// Set a registry parameter, or a case field by its `case.` name (`case.time.max_dt_s=0.002`),
-    /// for every run (repeatable; a `--set` of the perturbed parameter moves its centre).
+    /// for every run (repeatable; after `--params`; a `--set` of the perturbed parameter moves its
+    /// centre).
     #[arg(long = "set", value_name = "NAME=VALUE", allow_hyphen_values = true)]
     set: Vec<String>,
     /// The calibration experiment this case is: its per-experiment values (`case.<path>@NAME`)
@@ -80,7 +87,10 @@ struct Report {
     value: f64,
     station: String,
     runs: Vec<Run>,
-    /// The registry parameters and case fields set by `--set`, by name.
+    /// The `--params` file, if one was given.
+    params: Option<String>,
+    /// The registry parameters and case fields set by `--params` and `--set`, by name (a
+    /// `--set` over the file's value).
     set: std::collections::BTreeMap<String, f64>,
     /// Smallest and largest chilldown of the runs that reached it, s.
     range_s: Option<(f64, f64)>,
@@ -118,7 +128,7 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.case).with_context(|| format!("cannot read {path}"))?;
     let case = Case::from_toml(&text, &path)?;
     let experiment = experiment_of(&args.case, args.experiment.as_deref());
-    let (applied, base, sets) = case_parameters(&case, &path, &experiment, None, &args.set)?;
+    let (applied, base, sets) = case_parameters(&case, &path, &experiment, args.params.as_deref(), &args.set)?;
     let case = applied.case;
     let value = base.try_get(&args.param).map_err(|e| anyhow!("--param: {e}"))?;
     if !(value.is_finite() && value != 0.0) {
@@ -180,6 +190,7 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
         station: station.clone(),
         target_met: all_reached && largest_move_s.is_some_and(|m| m <= TARGET_S),
         runs,
+        params: args.params.as_ref().map(|p| p.display().to_string()),
         set: sets.iter().flat_map(|s| s.values.clone()).collect(),
         range_s,
         mean_s,
@@ -208,12 +219,9 @@ fn mean_and_deviation(xs: &[f64]) -> (Option<f64>, Option<f64>) {
 }
 
 fn print_report(r: &Report) {
-    let set = if r.set.is_empty() {
-        String::new()
-    } else {
-        let list: Vec<String> = r.set.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        format!(" (with {})", list.join(", "))
-    };
+    let mut with: Vec<String> = r.params.iter().cloned().collect();
+    with.extend(r.set.iter().map(|(k, v)| format!("{k}={v}")));
+    let set = if with.is_empty() { String::new() } else { format!(" (with {})", with.join(", ")) };
     println!(
         "{}{set}: {} = {} moved by up to {} units in the last place; {} chilldown, {:.1} s",
         r.case,
