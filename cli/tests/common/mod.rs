@@ -48,8 +48,13 @@ pub fn read_json(path: &Path) -> serde_json::Value {
 /// profile at the end — with the replacements `extra` (each `(from, to)` must apply), written to
 /// `dir/file`.
 pub fn small_nbs_case(dir: &Path, file: &str, end_s: f64, extra: &[(&str, &str)]) -> PathBuf {
-    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs/subcooled-4.2atm.toml");
-    let mut text = std::fs::read_to_string(src).unwrap();
+    small_nbs_case_from("subcooled-4.2atm.toml", dir, file, end_s, extra)
+}
+
+/// [`small_nbs_case`] from another of the NBS case files (`examples/nbs/<source>`).
+pub fn small_nbs_case_from(source: &str, dir: &Path, file: &str, end_s: f64, extra: &[(&str, &str)]) -> PathBuf {
+    let src = format!("{}/../examples/nbs/{source}", env!("CARGO_MANIFEST_DIR"));
+    let mut text = std::fs::read_to_string(&src).unwrap();
     let end = format!("end_s = {end_s:?}");
     let profile = format!("profile_interval_s = {end_s:?}");
     let cuts = [
