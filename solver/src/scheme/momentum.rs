@@ -537,7 +537,8 @@ struct JunctionState {
 /// no vapour to send), so the cell is the donor whichever way the absent gas is pushed.
 /// Measured (BENCHMARKS.md, "The inlet junction's donor by what crosses it"): that run takes
 /// 44 084 steps instead of 57 285 at the defaults; the one-ulp spread of the NBS subcooled
-/// nitrogen run is the same (largest moves 0.62–1.39 s against 1.11–1.42 s), and that of the
+/// nitrogen run is the same (largest moves of eight closure values 0.62–1.39 s against
+/// 0.47–1.42 s), and that of the
 /// NBS subcooled hydrogen 2.5 atm run at `calibrated.toml` falls from 1.80 to 0.16 s. On a
 /// 10-cell copy of the subcooled nitrogen case the spread widens (standard deviation 0.43 s
 /// against 0.07 s): its 6 m inlet cell geysers differently, which is why the twin calibration of
