@@ -126,10 +126,10 @@ impl StepController {
     pub fn propose(&self, s: &State, grid: &Grid, target: f64) -> f64 {
         let mut courant = f64::INFINITY;
         for j in 0..=grid.n {
-            let dxj = grid.dx_junction(j);
-            let v = s.v_g[j].abs().max(s.v_l[j].abs());
-            if v > 0.0 {
-                courant = courant.min(self.max_courant * dxj / v);
+            for v in [s.v_g[j], s.v_l[j]] {
+                if v != 0.0 {
+                    courant = courant.min(self.max_courant * donor_length(grid, j, v) / v.abs());
+                }
             }
         }
         let mut h = self.dt.min(self.max_dt).min(courant).min(target - s.time);
@@ -191,6 +191,23 @@ impl StepController {
     }
 }
 
+/// The length of the cell whose contents a velocity `v` at junction `j` carries across it: the
+/// upwind cell, or at a boundary junction whose upwind side is outside the line, the end cell the
+/// flow enters.
+///
+/// Decision: the material Courant number measures the fraction of a cell's contents that crosses
+/// one of its faces in a step, |v| Δt / Δx of the cell the donor-cell fluxes empty (or, at an
+/// inflow boundary, fill), as RELAP5 takes it on its volumes. Before, it was measured on the
+/// junction's momentum control volume, half a cell at the two boundary junctions: the exit's
+/// vapour, the fastest flow of the line, then held the steps at half of what the limit allows in
+/// the exit cell itself (after the chilldown of the saturated NBS runs nearly every step, at
+/// 0.5 s with the exit's 20 m/s; BENCHMARKS.md "The Courant number on the donor cell").
+fn donor_length(grid: &Grid, j: usize, v: f64) -> f64 {
+    let donor = if v > 0.0 { j.checked_sub(1) } else { (j < grid.n).then_some(j) };
+    // an upwind side outside the line: the end cell the flow enters
+    grid.dx[donor.unwrap_or(if j == 0 { 0 } else { grid.n - 1 })]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -228,6 +245,31 @@ mod tests {
         let stats = c.into_statistics();
         assert_eq!((stats.min_dt, stats.max_dt), (0.004, 0.01));
         assert_eq!(stats.step_limited_by["pressure"], 4);
+    }
+
+    #[test]
+    fn the_courant_limit_is_measured_on_the_cell_the_flow_empties_or_fills() {
+        let case = crate::reference::Reference::GasCooldown.with_cells(4);
+        let grid = Grid::from_case(&case);
+        let dx = grid.dx[0];
+        let mut t = time();
+        (t.max_dt_s, t.max_courant) = (1e3, 2.0);
+        let c = StepController { dt: 1e3, ..StepController::new(StepControl::default(), &t) };
+        let state = |j: usize, v_g: f64, v_l: f64| {
+            let mut s = State { v_g: vec![0.0; grid.n + 1], v_l: vec![0.0; grid.n + 1], ..State::default() };
+            (s.v_g[j], s.v_l[j]) = (v_g, v_l);
+            s
+        };
+        // the exit's outflow empties the last cell, a whole cell, not the half of the junction's
+        // momentum volume
+        assert_eq!(c.propose(&state(grid.n, 10.0, 0.0), &grid, 1e9), 2.0 * dx / 10.0);
+        // an inflow fills the first cell; a backflow at the exit fills the last one
+        assert_eq!(c.propose(&state(0, 0.0, 5.0), &grid, 1e9), 2.0 * dx / 5.0);
+        assert_eq!(c.propose(&state(grid.n, -4.0, 1.0), &grid, 1e9), 2.0 * dx / 4.0);
+        // inside the line the faster phase sets it
+        assert_eq!(c.propose(&state(2, 3.0, -8.0), &grid, 1e9), 2.0 * dx / 8.0);
+        // at rest only the controller's step and the target
+        assert_eq!(c.propose(&state(2, 0.0, 0.0), &grid, 7.0), 7.0);
     }
 
     #[test]
