@@ -203,9 +203,10 @@ impl StepController {
 /// the exit cell itself (after the chilldown of the saturated NBS runs nearly every step, at
 /// 0.5 s with the exit's 20 m/s; BENCHMARKS.md "The Courant number on the donor cell").
 fn donor_length(grid: &Grid, j: usize, v: f64) -> f64 {
-    let donor = if v > 0.0 { j.checked_sub(1) } else { (j < grid.n).then_some(j) };
+    let (left, right) = (j.checked_sub(1), (j < grid.n).then_some(j));
+    let (upwind, downwind) = if v > 0.0 { (left, right) } else { (right, left) };
     // an upwind side outside the line: the end cell the flow enters
-    grid.dx[donor.unwrap_or(if j == 0 { 0 } else { grid.n - 1 })]
+    upwind.or(downwind).map_or(0.0, |i| grid.dx[i])
 }
 
 #[cfg(test)]
