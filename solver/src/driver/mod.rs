@@ -139,6 +139,10 @@ pub struct Summary {
     /// losses, interphase drag and the donor-cell convection's numerical dissipation
     /// (`scheme::booked_heat`).
     pub dissipation_j: f64,
+    /// Heat that the throttles at the line's ends (a boundary's valve or entrance loss, a choked
+    /// exit's expansion) gave the fluid leaving the line over the run, J: it left with that
+    /// fluid, as part of the boundaries' total-energy flux (`scheme::exported_heat`).
+    pub exported_heat_j: f64,
     /// Why steps were rejected: "variable: reason" and how often (to see what makes a run slow).
     pub rejection_causes: BTreeMap<String, u64>,
     /// Which controlled variable came closest to its limit in accepted steps, and how often.
@@ -429,6 +433,7 @@ pub fn run_logged(
             max_volume_error: balances.max_volume_error,
             trace_adjustment_j: balances.trace_adjustment_j,
             dissipation_j: balances.dissipation_j,
+            exported_heat_j: balances.exported_heat_j,
             rejection_causes: steps.rejection_causes,
             step_limited_by: steps.step_limited_by,
             exit_choked_s: steps.exit_choked_s,

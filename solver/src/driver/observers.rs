@@ -261,6 +261,7 @@ pub(super) struct Balances {
     pub(super) max_volume_error: f64,
     pub(super) trace_adjustment_j: f64,
     pub(super) dissipation_j: f64,
+    pub(super) exported_heat_j: f64,
 }
 
 impl<'a> EnergyBudget<'a> {
@@ -317,6 +318,7 @@ impl<'a> EnergyBudget<'a> {
             max_volume_error: self.max_verr,
             trace_adjustment_j: cum.adjustment_abs,
             dissipation_j: cum.dissipation,
+            exported_heat_j: cum.exported_heat,
         }
     }
 }
@@ -339,6 +341,7 @@ fn add_budget(c: &mut StepBudget, b: &StepBudget) {
     c.adjustment_abs += b.adjustment_abs;
     c.mechanical_flux_abs += b.mechanical_flux_abs;
     c.dissipation += b.dissipation;
+    c.exported_heat += b.exported_heat;
     c.total_energy_flux += b.total_energy_flux;
 }
 

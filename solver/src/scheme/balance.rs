@@ -23,6 +23,10 @@ pub struct StepBudget {
     /// Kinetic energy the momentum equations turned into heat (friction, form losses, drag and
     /// the donor-cell convection's numerical dissipation), J.
     pub dissipation: f64,
+    /// Heat that the boundary junctions' form losses and a choked exit's resistance gave the
+    /// fluid leaving the line, J: it leaves with that fluid (part of `total_energy_flux`'s
+    /// outflow, not of `dissipation`).
+    pub exported_heat: f64,
     /// Energy added by state adjustments outside the balance equations (vanishing-phase
     /// resets and clamps), J, net.
     pub adjustment: f64,

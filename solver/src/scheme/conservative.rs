@@ -1,7 +1,7 @@
 //! Step 2: the unexpanded (conservative) phasic mass and energy equations with the new
 //! velocities and new-time donors, the heat and work they book, and the wall's energy.
 
-use super::momentum::{booked_heat, time_step_loss};
+use super::momentum::{booked_heat, exported_heat, time_step_loss};
 use super::{Rejection, Scheme, StepBudget, StepInput, Work, boundary_conserved};
 use crate::fluids::{Phase, PhaseProps};
 use crate::linalg;
@@ -66,11 +66,16 @@ impl Scheme<'_> {
     pub(super) fn dissipated_heat(&self, st: &StepInput, w: &mut Work, next: &State) {
         let g = &self.grid;
         let v1 = [next.v_g.as_slice(), next.v_l.as_slice()];
+        w.exported_heat = 0.0;
         for j in 0..st.n + 1 {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             let mass = [w.mass_g.as_slice(), w.mass_l.as_slice()];
+            // the heat of the end throttles on the outflow leaves with it (`exported_heat`)
+            let exported = exported_heat(&w.mech[j], j, st.n, v1);
+            w.exported_heat += exported * g.area_junction[j] * g.dx_junction(j);
             w.junction_heat[j] = booked_heat(&w.mech[j], j, v1, vt, mass, g.dx_junction(j))
-                + time_step_loss(&w.mech[j], j, [st.s.v_g.as_slice(), st.s.v_l.as_slice()], v1, st.dt);
+                + time_step_loss(&w.mech[j], j, [st.s.v_g.as_slice(), st.s.v_l.as_slice()], v1, st.dt)
+                - exported;
             // Decision: the kinetic energy of the mass that changes phase is booked where the
             // two equations disagree about it. The phase-change momentum's work at junction j,
             // −(Γ_j/2)(v_g² − v_l²) V_j, takes the mean Γ_j of the junction's cells, while the

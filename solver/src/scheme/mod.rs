@@ -298,6 +298,9 @@ impl<'a> Scheme<'a> {
         // boundary mass fluxes (donor properties)
         (budget.total_energy_flux, budget.mechanical_flux_abs) =
             self.total_energy_flux(&next, st.dt, st.inlet1, st.outlet1);
+        // the heat the end throttles gave the outflow leaves with it
+        budget.exported_heat = w.exported_heat * st.dt;
+        budget.total_energy_flux -= budget.exported_heat;
         next.time = st.s.time + st.dt;
         all_finite(&next)?;
         let mut change = self.change_control(st, w, &next)?;
@@ -469,6 +472,10 @@ struct Work {
     /// Per junction: the heat its momentum forces put into the fluid, W/m³ ([`momentum::booked_heat`];
     /// estimated in `provisional_velocities`, booked in `dissipated_heat`).
     junction_heat: Vec<f64>,
+    /// The power that the boundary junctions' form losses and a choked exit's resistance gave
+    /// the fluid leaving the line, W (`dissipated_heat`; [`momentum::exported_heat`]): not
+    /// booked in a cell, it leaves with the outflow.
+    exported_heat: f64,
     /// Per junction: the provisional gas and liquid velocities (`provisional_velocities`).
     vt_g: Vec<f64>,
     /// See `vt_g`.

@@ -125,6 +125,7 @@ impl Scheme<'_> {
         let mut work = JunctionWork {
             inertia: [jc.ar_g, jc.ar_l, jc.vm],
             fric: [jc.fric_g, jc.fric_l],
+            boundary_loss: [jc.loss_g, jc.loss_l],
             drag: jc.drag,
             drag_explicit: jc.drag_explicit,
             conv: [None; 2],
@@ -212,7 +213,8 @@ impl Scheme<'_> {
         for j in 0..st.n + 1 {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             w.junction_heat[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j))
-                + time_step_loss(&w.mech[j], j, [s.v_g.as_slice(), s.v_l.as_slice()], vt, st.dt);
+                + time_step_loss(&w.mech[j], j, [s.v_g.as_slice(), s.v_l.as_slice()], vt, st.dt)
+                - exported_heat(&w.mech[j], j, st.n, vt);
         }
         Ok(())
     }
@@ -262,14 +264,17 @@ impl Scheme<'_> {
         };
         let (p_l, p_r) = (if j == 0 { inlet.p } else { s.p[j - 1] }, if j == n { outlet.p } else { s.p[j] });
         let gx = -grav * g.sin_junction[j];
+        let (mut loss_g, mut loss_l) = (0.0, 0.0);
         if let Some(b) = bnd {
             let loss = FormLoss { b, dx: g.dx_junction(j), dt, dp_old: p_r - p_l, gx };
-            fric_g += loss.coefficient(ar_g, a_g, vg, fric_g);
-            fric_l += loss.coefficient(ar_l, a_l, vl, fric_l);
+            loss_g = loss.coefficient(ar_g, a_g, vg, fric_g);
+            loss_l = loss.coefficient(ar_l, a_l, vl, fric_l);
         }
-        // a choked exit's resistance (`choking.rs`), booked like friction
-        fric_g += choke * ar_g;
-        fric_l += choke * ar_l;
+        // a choked exit's resistance (`choking.rs`), acting like the valve's loss
+        loss_g += choke * ar_g;
+        loss_l += choke * ar_l;
+        fric_g += loss_g;
+        fric_l += loss_l;
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
         let drag_physical = if ph.interphase_drag { cryo::interfacial_drag(&local, cp, &regime) } else { 0.0 };
         // Newton linearisation of the drag force G(v_r) = F(v_r) v_r about the old relative
@@ -336,6 +341,8 @@ impl Scheme<'_> {
             ar_l: ar_l.max(1e-9 * rho_m),
             fric_g,
             fric_l,
+            loss_g,
+            loss_l,
             drag,
             drag_explicit,
             vm,
@@ -489,6 +496,38 @@ pub(super) fn time_step_loss(m: &JunctionWork, j: usize, v0: [&[f64]; 2], v1: [&
     0.5 * (m.inertia[0] * dg * dg + m.inertia[1] * dl * dl + m.inertia[2] * dr * dr) / dt
 }
 
+/// The part of a boundary junction's heat ([`booked_heat`], W/m³ of its control volume) that
+/// the fluid leaving the line takes with it: the work of its form loss and of a choked exit's
+/// resistance on each phase that flows out through it, F_loss v².
+///
+/// Decision: a valve, an entrance or a choked exit's expansion at the end of the line throttles
+/// the fluid that passes it; the kinetic energy the throttle destroys heats the fluid downstream
+/// of it, which keeps its stagnation enthalpy. Flowing in, that fluid is the first or last
+/// cell's, where the heat stays booked. Flowing out, it is no longer in the line: the heat leaves
+/// with it, through the boundary's total-energy flux (`Scheme::step`), instead of heating the
+/// cell it came from. Before, an exit valve of 50 velocity heads at the end of the saturated
+/// 3.4 atm NBS line heated the exit cell's vapour from 294 to 350 K by 96 s (the outflow's
+/// K v²/2, 65 kJ/kg at 51 m/s, booked in the cell) and the wall under it to 341 K, and the run
+/// ended with the vapour's energy above its table; the vapour venting back into the dewar
+/// through the inlet valve heated the inlet cell the same way.
+pub(super) fn exported_heat(m: &JunctionWork, j: usize, n: usize, v1: [&[f64]; 2]) -> f64 {
+    let outward = if j == 0 {
+        -1.0
+    } else if j == n {
+        1.0
+    } else {
+        return 0.0;
+    };
+    let mut heat = 0.0;
+    for k in 0..2 {
+        let v = v1[k][j];
+        if outward * v > 0.0 {
+            heat += m.boundary_loss[k] * v * v;
+        }
+    }
+    heat
+}
+
 /// A junction's momentum coefficients that do work on the flow (per unit volume), kept from
 /// step 1 to book that work as heat in step 2.
 #[derive(Debug, Clone, Copy, Default)]
@@ -498,6 +537,9 @@ pub(super) struct JunctionWork {
     inertia: [f64; 3],
     /// Wall friction and form-loss coefficients, N s/m⁴.
     fric: [f64; 2],
+    /// The part of `fric` that acts where the line ends: a boundary junction's form loss
+    /// (valve, entrance) and a choked exit's resistance, N s/m⁴ ([`exported_heat`]).
+    boundary_loss: [f64; 2],
     /// Implicit drag coefficient (physical slope and blending tie), N s/m⁴.
     drag: f64,
     /// Explicit part of the Newton-linearised drag, N/m³.
@@ -558,6 +600,10 @@ struct JunctionCoefficients {
     ar_l: f64,
     fric_g: f64,
     fric_l: f64,
+    /// The part of `fric_g`, `fric_l` that acts where the line ends (a boundary junction's
+    /// valve or entrance loss and a choked exit's resistance), N s/m⁴.
+    loss_g: f64,
+    loss_l: f64,
     /// Implicit interphase drag coefficient (the Newton slope of the physical drag plus the
     /// phase-blending tie), N s/m⁴.
     drag: f64,
