@@ -387,6 +387,12 @@ fn print_summary(
     if s.exit_choked_s > 0.0 {
         println!("  the exit was choked for {:.1} s (flowing at its mixture's speed of sound)", s.exit_choked_s);
     }
+    if s.exported_heat_j >= 1.0 {
+        println!(
+            "  {:.3} kJ of heat from the throttles at the line's ends (valve and entrance losses, a choked exit) left with the outflow",
+            s.exported_heat_j / 1e3
+        );
+    }
     let when = |t: Option<f64>| t.map_or_else(|| "not reached".to_string(), |t| format!("{t:.4} s"));
     for (station, chill) in &s.chilldown_time_s {
         let quench = s.quench_arrival_s.get(station).copied().flatten();
