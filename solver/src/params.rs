@@ -598,6 +598,27 @@ macro_rules! parameter_table {
                 /// `drop_contact_k`: constant of the Forslund–Rohsenow drop–wall contact coefficient.
                 field: drop_contact_k,
             }
+            "hg_drop_gain" {
+                group: "film_boiling",
+                default: 0.0,
+                lower: 0.0,
+                upper: 10.0,
+                unit: "-",
+                description: "enhancement of the vapour's wall convection by the drops of a dispersed flow: the factor 1 + hg_drop_gain w_dry ε/(ε + hg_drop_eps), ε the liquid fraction (0 turns it off)",
+                /// `hg_drop_gain`: largest enhancement of the vapour's wall convection by the drops of a
+                /// dispersed flow (0: none).
+                field: gas_wall_drop_scale,
+            }
+            "hg_drop_eps" {
+                group: "film_boiling",
+                default: 1.0e-3,
+                lower: 1.0e-5,
+                upper: 0.1,
+                unit: "-",
+                description: "liquid fraction at which the drops' enhancement of the vapour's wall convection is half of hg_drop_gain",
+                /// `hg_drop_eps`: liquid fraction of half the drops' enhancement.
+                field: gas_wall_drop_fraction,
+            }
         }
     };
 }

@@ -97,6 +97,9 @@ fn registry_spec(name: &str) -> &'static cryofit_solver::params::ParamSpec {
     REGISTRY.iter().find(|p| p.name == name).unwrap()
 }
 
+/// Parameters that act only where another is switched on, and the value that switches it on.
+const ENABLED_BY: [(&str, &str, f64); 1] = [("hg_drop_eps", "hg_drop_gain", 1.0)];
+
 /// A value inside the bounds, clearly different from the default.
 fn perturbed(default: f64, lower: f64, upper: f64) -> f64 {
     if upper > default { default + 0.5 * (upper - default) } else { default - 0.5 * (default - lower) }
@@ -134,8 +137,13 @@ fn every_parameter_changes_some_output() {
             // the scale of T_onb goes up, every other held scale down
             base_set.set(h, if *h == "Tonbsc" { sp.upper } else { sp.lower }).unwrap();
         }
+        // a parameter that acts only where another is switched on: both runs switch it on
+        let enabled = ENABLED_BY.iter().find(|(n, _, _)| *n == p.name);
+        if let Some((_, on, v)) = enabled {
+            base_set.set(on, *v).unwrap();
+        }
         for ((label, case), base) in cases.iter().zip(&baselines) {
-            let held_base = held.map(|_| run(case, &base_set));
+            let held_base = (held.is_some() || enabled.is_some()).then(|| run(case, &base_set));
             let base = held_base.as_ref().unwrap_or(base);
             let mut set = base_set.clone();
             set.set(p.name, value).unwrap();

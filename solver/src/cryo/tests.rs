@@ -966,6 +966,9 @@ fn fingerprint(p: &CryoParams) -> Vec<f64> {
 const ORDERING_BOUNDS: [(&str, &[&str]); 3] =
     [("boil_gap_chf", &["Tchfsc", "Tonbsc"]), ("boil_gap_mfb", &["Tmfbsc"]), ("chf_over_mfb", &["qchfsc"])];
 
+/// Parameters that act only where another is switched on, the value that switches it on.
+const ENABLED_BY: [(&str, &str, f64); 1] = [("hg_drop_eps", "hg_drop_gain", 1.0)];
+
 #[test]
 fn every_parameter_is_live() {
     for name in PARAMETER_NAMES {
@@ -977,6 +980,9 @@ fn every_parameter_is_live() {
                 // the scale of T_onb goes up, every other held scale down
                 base_set.set(h, if *h == "Tonbsc" { sp.upper } else { sp.lower }).unwrap();
             }
+        }
+        if let Some((_, on, v)) = ENABLED_BY.iter().find(|(n, _, _)| n == name) {
+            base_set.set(on, *v).unwrap();
         }
         let base = fingerprint(&CryoParams::from_set(&base_set));
         assert!(base.iter().all(|x| x.is_finite()));
@@ -991,4 +997,28 @@ fn every_parameter_is_live() {
             });
         assert!(live, "parameter {name} changes no closure output");
     }
+}
+
+#[test]
+fn drops_enhance_the_vapour_convection_only_when_asked_and_only_in_a_mist() {
+    let p = CryoParams::from_set(&ParameterSet::new());
+    let s = ln2(0.99, 250.0, 10.0, 8.0);
+    let mist = Regime { stratified: 0.0, wavy: 0.0, annular: 0.0, dryout: 1.0 };
+    // off by default: the coefficient is the single-phase one, bit for bit
+    assert_eq!(drop_enhancement(&s, &p, &mist), 1.0);
+    let base = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &mist).h_wg;
+    assert_eq!(base, gas_convection_htc(&s, &p, s.t_w));
+    let mut on = p;
+    on.gas_wall_drop_scale = 3.0;
+    on.gas_wall_drop_fraction = 0.01;
+    // 1 + E ε/(ε + ε₀) with ε = 0.01 = ε₀: half of E
+    let f = drop_enhancement(&s, &on, &mist);
+    assert!((f - 2.5).abs() < 1e-12, "{f}");
+    assert!((wall_heat(&s, &on, CorrelationSet::Paper, 0.0, &mist).h_wg - f * base).abs() < 1e-9 * base);
+    // weighted by the mist regime, and nothing without liquid
+    assert_eq!(drop_enhancement(&s, &on, &WET), 1.0);
+    assert_eq!(drop_enhancement(&Local { alpha: 1.0, ..s }, &on, &mist), 1.0);
+    // it saturates at 1 + E as the liquid fraction grows
+    let dense = drop_enhancement(&Local { alpha: 0.5, ..s }, &on, &mist);
+    assert!(dense > f && dense < 1.0 + 3.0, "{dense}");
 }
