@@ -82,7 +82,10 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, re
 /// 0.97–0.999, runs 40–60 K below the wall, and the first station chills 48–57 % late in the
 /// hydrogen runs with the six-run parameters, where the data's wall cools at 5–10 K/s
 /// (VALIDATION.md, "The first station's vapour"). The saturating form in ε keeps the far line's
-/// nearly dry vapour at its single-phase coefficient.
+/// nearly dry vapour at its single-phase coefficient. Fitted to the six runs
+/// (`examples/nbs/calibrate-six-drops.toml`: gain 2.9, ε₀ 8.5e-4) it hastens the nitrogen runs,
+/// whose mist reaches further down the line, more than the hydrogen runs' first station; it stays
+/// off by default until cross-validation has judged it.
 pub fn drop_enhancement(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
     let e = p.gas_wall_drop_scale;
     if e <= 0.0 {
