@@ -274,7 +274,11 @@ mod tests {
             seen.push(name);
         }
         seen.sort();
-        assert_eq!(seen, ["calibrated-regime.toml", "calibrated.toml"], "parameter files beside the runs");
+        assert_eq!(
+            seen,
+            ["calibrated-drops.toml", "calibrated-regime.toml", "calibrated.toml"],
+            "parameter files beside the runs"
+        );
     }
 
     #[test]
