@@ -607,7 +607,7 @@ macro_rules! parameter_table {
                 description: "enhancement of the vapour's wall convection by the drops of a dispersed flow: the factor 1 + hg_drop_gain w_dry ε/(ε + hg_drop_eps), ε the liquid fraction (0 turns it off)",
                 /// `hg_drop_gain`: largest enhancement of the vapour's wall convection by the drops of a
                 /// dispersed flow (0: none).
-                field: gas_wall_drop_scale,
+                field: gas_wall_drop_gain,
             }
             "hg_drop_eps" {
                 group: "film_boiling",

@@ -1009,7 +1009,7 @@ fn drops_enhance_the_vapour_convection_only_when_asked_and_only_in_a_mist() {
     let base = wall_heat(&s, &p, CorrelationSet::Paper, 0.0, &mist).h_wg;
     assert_eq!(base, gas_convection_htc(&s, &p, s.t_w));
     let mut on = p;
-    on.gas_wall_drop_scale = 3.0;
+    on.gas_wall_drop_gain = 3.0;
     on.gas_wall_drop_fraction = 0.01;
     // 1 + E ε/(ε + ε₀) with ε = 0.01 = ε₀: half of E
     let f = drop_enhancement(&s, &on, &mist);

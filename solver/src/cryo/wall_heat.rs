@@ -87,7 +87,7 @@ pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, re
 /// whose mist reaches further down the line, more than the hydrogen runs' first station; it stays
 /// off by default until cross-validation has judged it.
 pub fn drop_enhancement(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
-    let e = p.gas_wall_drop_scale;
+    let e = p.gas_wall_drop_gain;
     if e <= 0.0 {
         return 1.0;
     }
