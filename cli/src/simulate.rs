@@ -380,7 +380,7 @@ fn print_summary(
     }
     if s.pressure_refills > 0 {
         println!(
-            "  {} cell state(s) whose volume error did not shrink with the step recovered at the pressure that fills them (mass and energy kept)",
+            "  {} cell state(s) whose volume error did not shrink with the step, or that a phase's merge left, recovered at the pressure that fills them (mass and energy kept)",
             s.pressure_refills
         );
     }

@@ -378,3 +378,26 @@ fn the_liquid_behind_a_saturated_front_does_not_flicker() {
     let out = run(&case, &ParameterSet::new());
     assert!(out.summary.steps < 6_200, "{} steps", out.summary.steps);
 }
+
+/// Robustness sample 2 of seed 1 on the registry with the drops' enhancement (`hg_drop_gain`
+/// 5.8): the first-contact surge took the inlet cell above nitrogen's critical pressure, a merge
+/// left its fluid filling 90 % of it, no correction shrank the error, and the steps halved below
+/// 1e-9 s at 1.67 s. The cell is now recovered at the pressure that fills it (as saturated
+/// liquid and vapour below the critical pressure).
+#[test]
+fn a_merge_near_the_critical_point_leaves_a_cell_that_fills() {
+    // the whole run (1000 s): in its first seconds the wall has given up too little heat for
+    // the balance's ratio to mean much (5.9e-3 of 21 kJ at 1.6 s, before the merge)
+    let case = nbs("subcooled-4.2atm");
+    let out = run(&case, &params("robustness-seed1-sample2.toml"));
+    let s = &out.summary;
+    assert!(s.simulated_time_s >= case.time.end_s - 1e-9);
+    assert!(
+        s.pressure_refills > 0 && s.mixture_recoveries > 0,
+        "{} refills, {} mixtures",
+        s.pressure_refills,
+        s.mixture_recoveries
+    );
+    assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
+    assert!(s.trace_adjustment_j.abs() < 3350.0, "trace adjustments {} J", s.trace_adjustment_j);
+}

@@ -156,9 +156,10 @@ pub struct Summary {
     /// steps.
     pub mixture_recoveries: u64,
     /// Cell states recovered again at the pressure at which their phases fill the cell, where a
-    /// retried step's volume error did not shrink with the step (the equation of state solved
-    /// for the pressure, mass and energy kept exactly; `scheme/refill.rs`), summed over the
-    /// accepted steps.
+    /// retried step's volume error did not shrink with the step or a phase's merge into the
+    /// other left a volume error above its limit (the equation of state solved for the
+    /// pressure, mass and energy kept exactly; `scheme/refill.rs`, `scheme/recovery.rs`), summed
+    /// over the accepted steps.
     pub pressure_refills: u64,
     /// First time the wall falls below the inlet liquid temperature + 15 K, per station.
     pub chilldown_time_s: BTreeMap<String, Option<f64>>,

@@ -17,7 +17,7 @@
 use crate::fluids::{FluidTable, Phase};
 
 /// Farthest the search moves the pressure, as a fraction of it.
-const MAX_RELATIVE_MOVE: f64 = 0.1;
+pub(super) const MAX_RELATIVE_MOVE: f64 = 0.1;
 /// Volume error at which the search stops.
 const TOLERANCE: f64 = 1e-9;
 /// Most evaluations of the volume balance.
