@@ -53,7 +53,7 @@
 //! | `work_consistency` | `conservative.rs` | pressure work the flow work did not book |
 //! | `energy_update` | `conservative.rs` | step 2: conservative phasic energies |
 //! | `wall_update` | `conservative.rs` | the wall's energy and temperature, the heat budgets |
-//! | `state_recovery` | `recovery.rs`, `refill.rs` | pressure, temperatures and void fraction from the conserved variables |
+//! | `state_recovery` | `recovery.rs`, `refill.rs`, `mixture.rs` | pressure, temperatures and void fraction from the conserved variables |
 //! | `total_energy_flux` | `balance.rs` | the boundary total-energy flux of the budget |
 //! | `all_finite`, `change_control`, `volume_error_check` | `acceptance.rs` | the acceptance checks |
 
@@ -64,6 +64,7 @@ mod acceptance;
 mod balance;
 mod choking;
 mod conservative;
+mod mixture;
 mod momentum;
 mod pressure;
 mod recovery;
