@@ -196,7 +196,7 @@ impl Scheme<'_> {
     ///
     /// Where a merge leaves less than `MAX_VOLUME_ERROR` the error stays for the following
     /// pressure equations, as before: the NBS nitrogen runs, whose merges all do, are unchanged
-    /// bit for bit. The NBS hydrogen runs refill 40–60 more cells, their largest volume error
+    /// bit for bit. The NBS hydrogen runs refill 37–58 more cells, their largest volume error
     /// falls from 3.4–6.5e-3 to 2.0–3.3e-3, and their station-4 chilldown moves by 0.3 % at most.
     fn refill_merged(&self, st: &StepInput, w: &mut Work, next: &mut State, budget: &mut StepBudget, i: usize) {
         let merged = MergedCell::take(next, w, budget, i);
