@@ -276,7 +276,7 @@ mod tests {
         seen.sort();
         assert_eq!(
             seen,
-            ["calibrated-drops.toml", "calibrated-regime.toml", "calibrated.toml"],
+            ["calibrated-regime.toml", "calibrated-six.toml", "calibrated.toml"],
             "parameter files beside the runs"
         );
     }

@@ -138,7 +138,7 @@ fn vapour_past_its_table_condenses_in_a_cell_without_liquid() {
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
 }
 
-/// The same rounded inlet with `examples/nbs/calibrated.toml`: at 9.79 s the second cell held
+/// The same rounded inlet with `examples/nbs/calibrated-six.toml`: at 9.79 s the second cell held
 /// a little vapour (void fraction 0.005) beside fluid at 1.297 MPa and 32.99 K, just above the
 /// critical point, where ∂ρ/∂T|p is −180 to −270 kg/m³/K and ∂ρ/∂p|T changes by a factor 2.5 over
 /// 2 kPa. The pressure equation's linearised correction of a volume error of −2.5e-3 left one of
@@ -148,14 +148,14 @@ fn vapour_past_its_table_condenses_in_a_cell_without_liquid() {
 #[test]
 fn a_volume_error_no_step_shrinks_is_solved_for_the_pressure() {
     let case = envelope_11atm("parahydrogen", 19.619650779, 12.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 12.0 - 1e-9);
     assert!(out.summary.pressure_refills >= 1, "no cell was refilled");
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
 }
 
-/// Subcooled para-hydrogen with `examples/nbs/calibrated.toml` on 120 cells: at 2.9 s the fifth
+/// Subcooled para-hydrogen with `examples/nbs/calibrated-six.toml` on 120 cells: at 2.9 s the fifth
 /// cell held near-critical vapour alone (1.282 MPa, 32.95 K) with a volume error of −0.18 left
 /// by a near-critical mixture's recovery. The correction's limit took the pressure change it
 /// implies from the isothermal compressibility where the cell's storage matrix was singular (no
@@ -167,12 +167,12 @@ fn a_volume_error_no_step_shrinks_is_solved_for_the_pressure() {
 fn a_vapour_alone_near_the_critical_point_limits_its_correction() {
     let mut case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 3.5);
     case.pipe.cells = 120;
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 3.5 - 1e-9);
 }
 
-/// Subcooled para-hydrogen with `examples/nbs/calibrated.toml`: at 11.35 s an inlet cell's
+/// Subcooled para-hydrogen with `examples/nbs/calibrated-six.toml`: at 11.35 s an inlet cell's
 /// pressure fell to 1.2707 MPa (0.988 of the critical pressure), where the liquid table ends
 /// at 32.81 K and the vapour table at 32.88 K, both at their spinodal margins and on either side
 /// of the saturation temperature (32.86 K): the cell's liquid at 220 kJ/kg lay above its table's
@@ -193,14 +193,14 @@ fn a_vapour_alone_near_the_critical_point_limits_its_correction() {
 fn a_near_critical_cell_is_recovered_as_one_mixture() {
     let mut case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 20.0);
     case.pipe.cells = 10;
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 20.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
     assert!(out.summary.mixture_recoveries >= 1, "the mixture recovery was not needed");
 }
 
-/// Subcooled para-hydrogen with `examples/nbs/calibrated.toml`: at 6.63 s the inlet cell, at
+/// Subcooled para-hydrogen with `examples/nbs/calibrated-six.toml`: at 6.63 s the inlet cell, at
 /// 1.2445 MPa (0.968 of the critical pressure), held liquid past its table's top, which flashed
 /// at the table's edge; the vapour it made entered the gas at the saturation table's 296.8 kJ/kg,
 /// below the vapour table's first temperature (301.9 kJ/kg at 32.74 K), and took the cell's gas
@@ -211,7 +211,7 @@ fn a_near_critical_cell_is_recovered_as_one_mixture() {
 #[test]
 fn vapour_from_flashing_enters_within_the_vapour_table() {
     let case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 7.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 7.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
@@ -284,16 +284,16 @@ fn the_exit_mist_evaporates_alike_at_any_step() {
 }
 
 /// The envelope's line with `fluid` saturated at 11 atm (the liquid at T_sat of the dewar), run
-/// for `end_s` with the parameters of `examples/nbs/calibrated.toml`.
+/// for `end_s` with the parameters of `examples/nbs/calibrated-six.toml`.
 fn saturated_11atm_calibrated(fluid: &str, end_s: f64) -> driver::Output {
     let table = fluids::embedded(fluid).unwrap();
     let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
     let case = envelope_11atm(fluid, t_sat, end_s);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     run(&case, &set)
 }
 
-/// Saturated methane with `examples/nbs/calibrated.toml` (Chisholm's C = 0): after its
+/// Saturated methane with `examples/nbs/calibrated-six.toml` (Chisholm's C = 0): after its
 /// chilldown the line carries a flashing flow that left the exit at 140 m/s, above its mixture's
 /// speed of sound (under 90 m/s); without a critical-flow limit the exit flickered from step to
 /// step (65 000 steps from 40 to 80 s) and the run's energy residual reached 1.6 %. The exit now
@@ -316,7 +316,7 @@ fn a_flashing_discharge_chokes_at_the_exit() {
     assert!(weighted >= 0.9 * speed, "the exit is choked: {weighted} m/s against {speed} m/s");
 }
 
-/// Saturated para-hydrogen at 11 atm with `examples/nbs/calibrated.toml`: after its chilldown
+/// Saturated para-hydrogen at 11 atm with `examples/nbs/calibrated-six.toml`: after its chilldown
 /// (30 s) the line carries a flashing outflow whose velocities change at every step of a
 /// fraction of a millisecond; the implicit inertia's kinetic-energy loss ½ α ρ (v¹ − v⁰)², not
 /// booked as heat, lost 3.8 kJ by 60 s (an energy balance error of 1.0e-3; 1.2e-2 by 300 s).
@@ -337,7 +337,7 @@ fn a_flashing_outflow_keeps_the_kinetic_energy_its_steps_lose() {
 
 /// The subcooled para-hydrogen line at 11 atm through its first 20 s of near-critical surges on
 /// 10 to 40 cells, with the inlet at saturation and rounded to 19.619650779 K, at the defaults
-/// and with `examples/nbs/calibrated.toml`: 4 of these 24 runs ended in an error before the
+/// and with `examples/nbs/calibrated-six.toml`: 4 of these 24 runs ended in an error before the
 /// near-critical states were settled as such. Fluid entering the two-phase region from where
 /// the table gives no saturation (a cell's "gas" at 237–248 kJ/kg falling from 0.999 to 0.979
 /// of the critical pressure, "liquid" at 33.0 K falling from 1.292 to 1.266 MPa) splits at the
@@ -346,7 +346,7 @@ fn a_flashing_outflow_keeps_the_kinetic_energy_its_steps_lose() {
 /// either side of the critical pressure (`Scheme::refill`).
 #[test]
 fn the_near_critical_line_runs_on_every_grid() {
-    let calibrated = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let calibrated = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
     let mut failed = Vec::new();
     for cells in [10, 15, 20, 25, 30, 40] {
         for inlet_k in [subcooled_inlet_k("parahydrogen"), 19.619650779] {

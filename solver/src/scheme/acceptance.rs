@@ -131,7 +131,7 @@ pub(super) fn all_finite(next: &State) -> Result<(), Rejection> {
 /// An error that a step half as long does not at least halve is not the step's either (the
 /// correction of a large inherited error near the critical point leaves a nonlinear remainder
 /// of its own: para-hydrogen saturated at 11 atm, −0.025 at any step length down to 1e-9 s;
-/// with `examples/nbs/calibrated.toml` the run ended there at 8.7 s while the rule covered only
+/// with `examples/nbs/calibrated-six.toml` the run ended there at 8.7 s while the rule covered only
 /// the reset cells): a retry from the same time whose error in a cell is above half of the
 /// rejected step's there (`w.volume_retry`) is not rejected for that cell, which enters the
 /// step control at its limit instead, so that the next step is shorter.

@@ -19,7 +19,7 @@
 //! discharges. A flashing discharge at the NBS line's exit (methane saturated at 11 atm, after
 //! its chilldown) left at 140 m/s where its mixture's speed of sound is under 90 m/s: without a
 //! critical-flow limit the discrete flow there flickered from step to step, took half a million
-//! steps and a per-step energy residual that added up to 1.6 % (`calibrated.toml`'s parameters;
+//! steps and a per-step energy residual that added up to 1.6 % (`calibrated-six.toml`'s parameters;
 //! 5 800 steps and 4e-4 with the limit).
 //!
 //! How it is imposed: an extra resistance λ α_k ρ_k v_k on each phase at the exit junction.
@@ -40,7 +40,7 @@
 //! held its steps to 35 ms for the rest of the run (10 450 steps for 300 s; 6 445 now). Started
 //! from the last step's own λ, the velocity drifted to the band's edge and λ jumped back, a
 //! kick to the exit cell's pressure each time (methane saturated at 3 atm with
-//! `calibrated.toml`: 16 % more steps than without a warm start); started from the λ that would
+//! `calibrated-six.toml`: 16 % more steps than without a warm start); started from the λ that would
 //! have held the last step at a, λ follows the exit's state from step to step and a further
 //! pass is rare. A resistance rather than a prescribed velocity, so that the work the pressure
 //! drop across the exit does beyond what the choked flow's kinetic energy takes is booked as

@@ -304,7 +304,7 @@ impl Scheme<'_> {
         // through them as well: where annular flow borders on mist, a few per cent of mist
         // weight with its 10 µm drops is 45 times the film's drag. With the regime held at
         // the old velocities the slope missed that growth, and the exit junction of
-        // para-hydrogen saturated at 11 atm (calibrated.toml) flipped between the two drags on
+        // para-hydrogen saturated at 11 atm (calibrated-six.toml) flipped between the two drags on
         // alternate steps after its chilldown (quality 0.47 ↔ 0.51, gas velocity 207 ↔ 227
         // m/s): 540 000 steps for 300 s, and an energy residual of −50 W that those steps
         // added up to 3.4e-3 of the wall's heat. With it, 121 000 steps and 3.8e-4; the
@@ -484,7 +484,7 @@ pub(super) fn booked_heat(
 /// velocity implicit a force f changes the kinetic energy by f v¹ Δt less this loss, which the
 /// heat of the forces ([`booked_heat`]) does not contain. Where the velocities settle it is
 /// small (0.03–0.2 kJ over the NBS runs), but where they swing from step to step it is not: the
-/// flashing outflow of para-hydrogen saturated at 11 atm (`examples/nbs/calibrated.toml`,
+/// flashing outflow of para-hydrogen saturated at 11 atm (`examples/nbs/calibrated-six.toml`,
 /// liquid and vapour leaving at 100–190 m/s, their velocities changing at every step of a
 /// fraction of a millisecond) lost about 120 W of it for the 270 s after its chilldown: the
 /// run's residual was −44.8 kJ by 300 s (an energy balance error of 1.2e-2), with the loss
@@ -581,7 +581,7 @@ struct JunctionState {
 /// 44 084 steps instead of 57 285 at the defaults; the one-ulp spread of the NBS subcooled
 /// nitrogen run is the same (largest moves of eight closure values 0.62–1.39 s against
 /// 0.47–1.42 s), and that of the
-/// NBS subcooled hydrogen 2.5 atm run at `calibrated.toml` falls from 1.80 to 0.16 s. On a
+/// NBS subcooled hydrogen 2.5 atm run at `calibrated-six.toml` falls from 1.80 to 0.16 s. On a
 /// 10-cell copy of the subcooled nitrogen case the spread widens (standard deviation 0.43 s
 /// against 0.07 s): its 6 m inlet cell geysers differently, which is why the twin calibration of
 /// the test suite is made on a saturated run.

@@ -89,7 +89,7 @@ impl Scheme<'_> {
         // vapour alone in a cell (para-hydrogen at 1.282 MPa, 32.95 K, after a near-critical
         // mixture's recovery left a volume error of −0.18) κ put the correction at 25 kPa and the
         // solve made it 1.9 MPa at any step length, and the run ended with its steps halved below
-        // 1e-9 s (para-hydrogen subcooled at 11 atm on 120 cells, `calibrated.toml`, 2.9 s).
+        // 1e-9 s (para-hydrogen subcooled at 11 atm on 120 cells, `calibrated-six.toml`, 2.9 s).
         // Where the matrix is singular even so, κ stands in.
         let kappa = a * gp.drho_dp / gp.rho + b * lp.drho_dp / lp.rho;
         let residual = Vector4::new(

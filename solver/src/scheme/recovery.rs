@@ -270,7 +270,7 @@ impl Scheme<'_> {
     /// there) belong to neither. The phase change at a table's edge moves mass at the other
     /// phase's saturated energy, which lies outside that phase's table there, and the pressure
     /// correction of a volume error does not shrink with the step: the subcooled para-hydrogen
-    /// line at 11 atm (`examples/nbs/calibrated.toml`) ended with its steps halved below 1e-9 s,
+    /// line at 11 atm (`examples/nbs/calibrated-six.toml`) ended with its steps halved below 1e-9 s,
     /// its inlet cells' liquid above its table's top and vapour below its table's bottom. The
     /// mixture has a state where its phases do not, and this close to the critical point the
     /// two phases' densities differ by a factor below 2, so the split moves little volume.
@@ -774,7 +774,7 @@ impl Recovery<'_> {
     /// pressure), where saturated vapour has 296.8 kJ/kg and the vapour table starts at
     /// 301.9 kJ/kg (32.74 K). Liquid past its table's top flashed into vapour at 296.8 kJ/kg,
     /// the cell's vapour fell below its table with it at any step length, and the run ended
-    /// (subcooled at 11 atm with `examples/nbs/calibrated.toml`, at 6.6 s with probes every
+    /// (subcooled at 11 atm with `examples/nbs/calibrated-six.toml`, at 6.6 s with probes every
     /// 0.25 s or on the interpolated outputs, at 18.3 s with probes every 2 s). Entering at the
     /// table's edge, the mass that changes phase is a little smaller and carries the same
     /// excess energy: the cell's energy is kept exactly.

@@ -9,7 +9,7 @@
 //! 32.99 K (1.009 of the critical pressure) ∂ρ/∂T|p is −180 to −270 kg/m³/K and ∂ρ/∂p|T changes
 //! by a factor 2.5 over 2 kPa, so a correction of ±2 kPa leaves errors of 3–7e-3 at any step
 //! length (the limit is 2e-3), and the run ended with its steps halved below 1e-9 s
-//! (para-hydrogen subcooled at 11 atm, inlet at 19.619650779 K, `examples/nbs/calibrated.toml`:
+//! (para-hydrogen subcooled at 11 atm, inlet at 19.619650779 K, `examples/nbs/calibrated-six.toml`:
 //! 9.79 s). [`filling_pressure`] solves the cell's volume balance for the pressure instead, with
 //! the phases' masses and energies held (so mass and energy are kept exactly), by a bracketed
 //! secant on the equation of state itself.
