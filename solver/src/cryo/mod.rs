@@ -98,13 +98,16 @@ pub use convection::{
     convection_nusselt, gas_convection_htc, liquid_convection_htc, recovery_temperature_rise, scaled_dittus_boelter,
 };
 pub use interphase::{Interphase, flashing_htc, interphase_heat};
-pub use momentum::{interfacial_drag, virtual_mass_coefficient, wall_friction};
+pub use momentum::{
+    SlipFree, interfacial_drag, interfacial_drag_with, virtual_mass_coefficient, wall_friction, wall_friction_with,
+};
 pub use parameters::{
     CorrelationSet, CryoParams, DIATOMIC_CP_OVER_R, NITROGEN_GAS_CONSTANT, NITROGEN_T_CRITICAL, PARAMETER_NAMES,
     UnknownCorrelationSet,
 };
 pub use regime::{
-    Regime, dryout_mass_flux, flow_regime, kutateladze_q_dnb, stratification_boundaries, wetted_fraction,
+    Regime, RegimeBasis, dryout_mass_flux, flow_regime, flow_regime_cached, kutateladze_q_dnb,
+    stratification_boundaries, wetted_fraction,
 };
 pub use state::{
     Local, Vapour, equilibrium_quality, mass_fluxes, regime_quality, static_quality, stratified_half_angle,

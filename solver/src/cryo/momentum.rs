@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 
 use super::parameters::CryoParams;
 use super::particles::{bubble_diameter, particle_diameter, relative_speed};
-use super::regime::{Regime, wetted_fraction};
+use super::regime::{Regime, wetted_fraction_at};
 use super::state::{Local, diameter, stratified_half_angle, void};
 use super::{BUBBLY_VOID, TINY, V_REG};
 use crate::closures::{churchill_darcy, smooth_step};
@@ -25,10 +25,55 @@ const WAVY_FRICTION: f64 = 0.0142;
 /// α_wg = 1 − α_wl (stratified: both walls; annular: all on the liquid film; mist: all on the
 /// gas). f_k = `fwsc` share_k dp_2φ/|v_k|. Velocities are regularised |v| → √(v² + (10⁻⁴)²).
 pub fn wall_friction(s: &Local, p: &CryoParams, regime: &Regime, roughness_rel: f64) -> (f64, f64) {
-    let d = diameter(s);
-    let a_g = void(s);
+    wall_friction_with(s, p, regime, roughness_rel, &SlipFree::new(s))
+}
+
+/// The parts of the momentum closures at a state that do not depend on its phase velocities
+/// (the void fraction's geometry, the bubbles' size), computed once where the closures are
+/// evaluated again at a shifted slip (the momentum step's drag slope). The closures with and
+/// without it agree to the bit.
+#[derive(Debug, Clone, Copy)]
+pub struct SlipFree {
+    d: f64,
+    a: f64,
+    beta: f64,
+    /// The stratified layer's half-angle δ ([`stratified_half_angle`]).
+    half_angle: f64,
+    /// The stratified interface per volume, 4 sin δ/(π D).
+    a_strat: f64,
+    sqrt_a: f64,
+    d_b: f64,
+    /// The bubbles' weight of intermittent flow.
+    bubbly: f64,
+}
+
+impl SlipFree {
+    /// The velocity-free parts at `s`.
+    pub fn new(s: &Local) -> Self {
+        let d = diameter(s);
+        let a = void(s);
+        let beta = 1.0 - a;
+        let half_angle = stratified_half_angle(beta);
+        Self {
+            d,
+            a,
+            beta,
+            half_angle,
+            a_strat: 4.0 * half_angle.sin() / (PI * d),
+            sqrt_a: a.sqrt(),
+            d_b: bubble_diameter(s),
+            bubbly: 1.0 - smooth_step((a - BUBBLY_VOID.0) / (BUBBLY_VOID.1 - BUBBLY_VOID.0)),
+        }
+    }
+}
+
+/// [`wall_friction`] with the velocity-free parts from `g` (made at a state that differs from
+/// `s` at most in its velocities).
+pub fn wall_friction_with(s: &Local, p: &CryoParams, regime: &Regime, roughness_rel: f64, g: &SlipFree) -> (f64, f64) {
+    let d = g.d;
+    let a_g = g.a;
     let a_l = 1.0 - a_g;
-    let w_l = wetted_fraction(s, regime);
+    let w_l = wetted_fraction_at(regime, g.half_angle);
     let w_g = 1.0 - w_l;
     let rough = roughness_rel.max(0.0);
     let vg = (s.v_g * s.v_g + V_REG * V_REG).sqrt();
@@ -77,21 +122,25 @@ fn sphere_cd(re: f64) -> f64 {
 /// Stratified and wavy are scaled by `idrag_strat_sc`, the rest by `idrag_disp_sc`. All tend to
 /// their laminar/Stokes values as v_r → 0.
 pub fn interfacial_drag(s: &Local, p: &CryoParams, regime: &Regime) -> f64 {
-    let d = diameter(s);
-    let a = void(s);
-    let beta = 1.0 - a;
+    interfacial_drag_with(s, p, regime, &SlipFree::new(s))
+}
+
+/// [`interfacial_drag`] with the velocity-free parts from `g` (made at a state that differs
+/// from `s` at most in its velocities).
+pub fn interfacial_drag_with(s: &Local, p: &CryoParams, regime: &Regime, g: &SlipFree) -> f64 {
+    let (d, a, beta) = (g.d, g.a, g.beta);
     let v_r = relative_speed(s);
     let re_r = (s.rho_g * v_r * d / s.mu_g.max(TINY)).max(1e-3);
     let f_smooth = churchill_darcy(re_r, 0.0) / 4.0;
-    let a_strat = 4.0 * stratified_half_angle(beta).sin() / (PI * d);
+    let a_strat = g.a_strat;
     let f_strat = 0.5 * f_smooth * s.rho_g * v_r * a_strat;
     let f_wavy = 0.5 * f_smooth.max(WAVY_FRICTION) * s.rho_g * v_r * a_strat;
 
     let f_wallis = (0.005 * (1.0 + 75.0 * beta)).max(f_smooth);
-    let f_film = 0.5 * f_wallis * s.rho_g * v_r * 4.0 * a.sqrt() / d;
-    let d_b = bubble_diameter(s);
+    let f_film = 0.5 * f_wallis * s.rho_g * v_r * 4.0 * g.sqrt_a / d;
+    let d_b = g.d_b;
     let re_b = s.rho_l * v_r * d_b / s.mu_l.max(TINY);
-    let bubbly = 1.0 - smooth_step((a - BUBBLY_VOID.0) / (BUBBLY_VOID.1 - BUBBLY_VOID.0));
+    let bubbly = g.bubbly;
     let f_bubbles = 0.75 * sphere_cd(re_b) * s.rho_l * v_r * a * beta / d_b;
     // Decision: the bubbles' drag (∝ ρ_l) is hundreds of times the film's (∝ ρ_g), so faded
     // out linearly it still ruled the drag a few hundredths below α = 0.4: the drag fell

@@ -87,28 +87,64 @@ fn dryout_quality_term(chi: f64) -> f64 {
 /// ln ṁ_dry of [`dryout_mass_flux`], or `None` where that is 0 (χ ≥ 0.976, or a boundary that
 /// is not a positive finite number).
 fn ln_dryout_mass_flux(s: &Local, p: &CryoParams, chi: f64, q_wall: f64) -> Option<f64> {
+    ln_dryout_cached(s, p, chi, q_wall, &mut RegimeBasis::default())
+}
+
+/// [`ln_dryout_mass_flux`] with the velocity-free part of the boundary taken from `basis`
+/// (computed there on first use).
+fn ln_dryout_cached(s: &Local, p: &CryoParams, chi: f64, q_wall: f64, basis: &mut RegimeBasis) -> Option<f64> {
     let quality_term = dryout_quality_term(chi);
     if quality_term <= 0.0 {
         return None;
     }
-    let ln_m = ln_dryout_with(s, p, quality_term, q_wall);
+    let ln_m = basis.dryout.get_or_insert_with(|| DryoutBasis::new(s, p, q_wall)).ln_mass_flux(quality_term);
     // exp(ln_m) positive and finite (the form with powers gives 0 outside)
     (ln_m > -745.0 && ln_m < 709.0).then_some(ln_m)
 }
 
-/// ln ṁ_dry at a positive `quality_term`, as a sum of logarithms (no powers):
+/// The terms of ln ṁ_dry that do not depend on the phase velocities (only the regime quality
+/// does), as a sum of logarithms (no powers):
 /// 0.93 [ln 4.25 + 0.17 ln(ρ_g σ/D) + 0.37 ln(g D ρ_g Δρ) + ln((ρ_l/ρ_g)^¼ (ln(0.58/χ) + 0.52))
 /// − 0.7 ln q̃].
-fn ln_dryout_with(s: &Local, p: &CryoParams, quality_term: f64, q_wall: f64) -> f64 {
-    let d = diameter(s);
-    let rho_g = s.vap_sat.rho.max(TINY);
-    let q_t = (q_wall.max(0.0) / kutateladze_q_dnb(s, p).max(TINY)).max(Q_TILDE_MIN);
-    let ln_q_t = if q_t == Q_TILDE_MIN { LN_Q_TILDE_MIN } else { q_t.ln() };
-    0.93 * (LN_4_25
-        + 0.17 * (rho_g * s.sigma.max(0.0) / d).ln()
-        + 0.37 * (boiling_gravity(s) * d * rho_g * sat_delta_rho(s)).ln()
-        + (fourth_root(s.rho_l_sat.max(0.0) / rho_g) * quality_term).ln()
-        - 0.7 * ln_q_t)
+#[derive(Debug, Clone, Copy)]
+struct DryoutBasis {
+    /// ln 4.25 + 0.17 ln(ρ_g σ/D) + 0.37 ln(g D ρ_g Δρ), summed in that order.
+    head: f64,
+    /// (ρ_l/ρ_g)^¼.
+    density_root: f64,
+    /// 0.7 ln q̃.
+    tail: f64,
+}
+
+impl DryoutBasis {
+    fn new(s: &Local, p: &CryoParams, q_wall: f64) -> Self {
+        let d = diameter(s);
+        let rho_g = s.vap_sat.rho.max(TINY);
+        let q_t = (q_wall.max(0.0) / kutateladze_q_dnb(s, p).max(TINY)).max(Q_TILDE_MIN);
+        let ln_q_t = if q_t == Q_TILDE_MIN { LN_Q_TILDE_MIN } else { q_t.ln() };
+        Self {
+            head: LN_4_25
+                + 0.17 * (rho_g * s.sigma.max(0.0) / d).ln()
+                + 0.37 * (boiling_gravity(s) * d * rho_g * sat_delta_rho(s)).ln(),
+            density_root: fourth_root(s.rho_l_sat.max(0.0) / rho_g),
+            tail: 0.7 * ln_q_t,
+        }
+    }
+
+    /// ln ṁ_dry at a positive `quality_term` (the same operations in the same order as the
+    /// sum written out: the cached and the uncached boundary agree to the bit).
+    fn ln_mass_flux(&self, quality_term: f64) -> f64 {
+        0.93 * (self.head + (self.density_root * quality_term).ln() - self.tail)
+    }
+}
+
+/// The part of the flow-regime map that does not depend on the phase velocities, kept between
+/// evaluations of [`flow_regime_cached`] at states that differ only in `v_g` and `v_l` (and the
+/// same wall heat flux): the momentum step's drag slope evaluates the map again at a shifted
+/// slip. Start each state from `RegimeBasis::default()`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RegimeBasis {
+    dryout: Option<DryoutBasis>,
 }
 
 /// Flow regime weights at the state `s` with wall heat flux `q_wall` (W/m², for the dryout
@@ -121,6 +157,13 @@ fn ln_dryout_with(s: &Local, p: &CryoParams, quality_term: f64, q_wall: f64) -> 
 /// stratified = (1 − dry)(1 − s_strat), wavy = (1 − dry) s_strat (1 − s_wavy),
 /// annular = (1 − dry) s_strat s_wavy, dryout = dry.
 pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
+    flow_regime_cached(s, p, q_wall, &mut RegimeBasis::default())
+}
+
+/// [`flow_regime`] with the velocity-free part of the dryout boundary kept in `basis`: valid
+/// only across states that differ in their phase velocities alone, at the same `q_wall`. The
+/// weights are the same to the bit as [`flow_regime`]'s.
+pub fn flow_regime_cached(s: &Local, p: &CryoParams, q_wall: f64, basis: &mut RegimeBasis) -> Regime {
     let (gg, gl) = mass_fluxes(s);
     let chi = regime_quality(s);
     let mist = smooth_step(0.5 + (chi - p.x_mist) / QUALITY_WIDTH);
@@ -130,7 +173,7 @@ pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
     }
     let ln_g = (gg + gl).max(1e-9).ln();
     let w = p.regime_width.max(1e-6);
-    let dry_hf = match ln_dryout_mass_flux(s, p, chi, q_wall) {
+    let dry_hf = match ln_dryout_cached(s, p, chi, q_wall, basis) {
         Some(ln_m) => smooth_step(0.5 + (ln_g - ln_m) / w),
         None => 1.0,
     };
@@ -169,8 +212,12 @@ pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
 /// liquid is the film-boiling flux, below it the nucleate/transition flux; the scheme relaxes
 /// its wetted fraction towards this value with the time constant `tauw`.
 pub fn wetted_fraction(s: &Local, regime: &Regime) -> f64 {
-    let beta = 1.0 - void(s);
-    let w_strat = stratified_half_angle(beta) / PI;
+    wetted_fraction_at(regime, stratified_half_angle(1.0 - void(s)))
+}
+
+/// [`wetted_fraction`] with the stratified layer's half-angle δ given.
+pub(super) fn wetted_fraction_at(regime: &Regime, half_angle: f64) -> f64 {
+    let w_strat = half_angle / PI;
     let w_wavy = 1.0 - 0.5f64.powf(0.61) * (1.0 - w_strat);
     let w = regime.stratified * w_strat + regime.wavy * w_wavy + regime.annular;
     w.clamp(0.0, 1.0)

@@ -1022,3 +1022,50 @@ fn drops_enhance_the_vapour_convection_only_when_asked_and_only_in_a_mist() {
     let dense = drop_enhancement(&Local { alpha: 0.5, ..s }, &on, &mist);
     assert!(dense > f && dense < 1.0 + 3.0, "{dense}");
 }
+
+/// The momentum step evaluates the regime map and the drag again at a shifted slip, reusing
+/// what does not depend on the velocities (`RegimeBasis`, `SlipFree`): at random states and
+/// parameter sets, the reused parts give the same bits as evaluating from scratch.
+#[test]
+fn velocity_free_parts_reused_give_the_same_bits() {
+    let mut r = Rng(20261203);
+    for _ in 0..20_000 {
+        let s = random_state(&mut r);
+        let p = random_params(&mut r);
+        let any = r.log_range(1.0, 1e6);
+        let q = r.pick(&[0.0, 1e3, 1e5, any]);
+        // the dryout boundary as its sum of logarithms written out in one expression
+        let chi = regime_quality(&s);
+        let quality_term = (0.58 / chi.max(1e-30)).ln() + 0.52;
+        if quality_term > 0.0 {
+            let (d, rho_g) = (diameter(&s), s.vap_sat.rho.max(1e-30));
+            let q_t = (q / kutateladze_q_dnb(&s, &p).max(1e-30)).max(Q_TILDE_MIN);
+            let ln_q_t = if q_t == Q_TILDE_MIN { LN_Q_TILDE_MIN } else { q_t.ln() };
+            let ln_m = 0.93
+                * (LN_4_25
+                    + 0.17 * (rho_g * s.sigma.max(0.0) / d).ln()
+                    + 0.37 * (super::state::boiling_gravity(&s) * d * rho_g * super::state::sat_delta_rho(&s)).ln()
+                    + (crate::fastmath::fourth_root(s.rho_l_sat.max(0.0) / rho_g) * quality_term).ln()
+                    - 0.7 * ln_q_t);
+            let expected = if ln_m > -745.0 && ln_m < 709.0 { ln_m.exp() } else { 0.0 };
+            assert_eq!(dryout_mass_flux(&s, &p, chi, q).to_bits(), expected.to_bits(), "dryout at {s:?}");
+        }
+        let mut basis = RegimeBasis::default();
+        let free = SlipFree::new(&s);
+        let mut shifted = s;
+        shifted.v_g = s.v_l + (s.v_g - s.v_l) * 1.01;
+        for st in [s, shifted] {
+            let cached = flow_regime_cached(&st, &p, q, &mut basis);
+            let fresh = flow_regime(&st, &p, q);
+            let bits = |g: &Regime| [g.stratified, g.wavy, g.annular, g.dryout].map(f64::to_bits);
+            assert_eq!(bits(&cached), bits(&fresh), "regime at {st:?}");
+            assert_eq!(
+                interfacial_drag_with(&st, &p, &fresh, &free).to_bits(),
+                interfacial_drag(&st, &p, &fresh).to_bits(),
+                "drag at {st:?}"
+            );
+            let (a, b) = (wall_friction_with(&st, &p, &fresh, 1e-4, &free), wall_friction(&st, &p, &fresh, 1e-4));
+            assert_eq!((a.0.to_bits(), a.1.to_bits()), (b.0.to_bits(), b.1.to_bits()), "friction at {st:?}");
+        }
+    }
+}

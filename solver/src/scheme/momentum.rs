@@ -248,9 +248,17 @@ impl Scheme<'_> {
         local.alpha = a_g;
         local.d_h = g.d_h_junction(j);
         let cp = &ph.cryo;
-        let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[donor]);
+        // the map and the closures again at the drag slope's shifted slip below reuse what does
+        // not depend on the velocities (bit for bit the same numbers)
+        let mut basis = cryo::RegimeBasis::default();
+        let slip_free = cryo::SlipFree::new(&local);
+        let regime = cryo::flow_regime_cached(&local, cp, s.wall_heat_flux[donor], &mut basis);
         let rough = 0.5 * (g.relative_roughness[j.saturating_sub(1)] + g.relative_roughness[j.min(n - 1)]);
-        let (f_g, f_l) = if ph.wall_friction { cryo::wall_friction(&local, cp, &regime, rough) } else { (0.0, 0.0) };
+        let (f_g, f_l) = if ph.wall_friction {
+            cryo::wall_friction_with(&local, cp, &regime, rough, &slip_free)
+        } else {
+            (0.0, 0.0)
+        };
         let fric = |f: f64, a: f64| if a > 0.0 { f } else { 0.0 };
         let mut fric_g = fric(f_g, a_g);
         let mut fric_l = fric(f_l, a_l);
@@ -276,7 +284,8 @@ impl Scheme<'_> {
         fric_g += loss_g;
         fric_l += loss_l;
         let rho_m = a_g * js.rho_g + a_l * js.rho_l;
-        let drag_physical = if ph.interphase_drag { cryo::interfacial_drag(&local, cp, &regime) } else { 0.0 };
+        let drag_physical =
+            if ph.interphase_drag { cryo::interfacial_drag_with(&local, cp, &regime, &slip_free) } else { 0.0 };
         // Newton linearisation of the drag force G(v_r) = F(v_r) v_r about the old relative
         // velocity: G(v_r^{n+1}) ≈ G' v_r^{n+1} + (F − G') v_r^n. The Picard form F(v_r^n) v_r^{n+1}
         // maps v_r^n to v_r^{n+1} with slope −(dlnF/dlnv_r) at equilibrium once the step is long
@@ -314,8 +323,8 @@ impl Scheme<'_> {
             if drag_physical > 0.0 && vr.abs() > 1e-3 {
                 let mut shifted = local;
                 shifted.v_g = vl + vr * (1.0 + NEWTON_DRAG_STEP);
-                let shifted_regime = cryo::flow_regime(&shifted, cp, s.wall_heat_flux[donor]);
-                let f2 = cryo::interfacial_drag(&shifted, cp, &shifted_regime);
+                let shifted_regime = cryo::flow_regime_cached(&shifted, cp, s.wall_heat_flux[donor], &mut basis);
+                let f2 = cryo::interfacial_drag_with(&shifted, cp, &shifted_regime, &slip_free);
                 let slope = drag_physical + (f2 - drag_physical) / NEWTON_DRAG_STEP;
                 let k = if slope.is_finite() { slope.max(drag_physical) } else { drag_physical };
                 (k, (k - drag_physical) * vr)
