@@ -68,11 +68,11 @@
 //! | `parameters` | [`CryoParams`], [`PARAMETER_NAMES`], [`CorrelationSet`], the fluid constants' defaults |
 //! | `convection` | single-phase convection to the wall, Dittus–Boelter, the recovery temperature |
 //! | `boiling` | the boiling curve: its anchors, the film-boiling correlations, the boiling property bases of [`Local`], [`WallRegime`] |
-//! | `regime` | the flow-regime map ([`Regime`], [`flow_regime`]), the dryout boundary, the wetted fraction |
+//! | `regime` | the flow-regime map ([`Regime`], [`flow_regime`], and [`flow_regime_cached`] with its velocity-free part kept in a [`RegimeBasis`]), the dryout boundary, the wetted fraction |
 //! | `wall_heat` | [`WallHeat`], [`wall_heat`], the drop–wall contact of dispersed flow |
 //! | `particles` | drop and bubble diameters and the regularised slip velocity |
 //! | `interphase` | interphase heat transfer ([`Interphase`], [`interphase_heat`]) and flashing |
-//! | `momentum` | wall friction, interfacial drag, virtual mass |
+//! | `momentum` | wall friction, interfacial drag (each also with its velocity-free parts given, [`SlipFree`]), virtual mass |
 //!
 //! Dependencies run one way: `state` and `parameters` first, then `convection`, `boiling`,
 //! `regime` and `particles`, then `wall_heat`, `interphase` and `momentum`. Of the crate's other
