@@ -17,6 +17,9 @@
 //!
 //! `cryofit bench speed --case CASE [--case CASE]... [--repeats N] [--json]` measures how many
 //! times faster than physical time each case runs on one core (see [`speed`]).
+//!
+//! `cryofit bench grid --case CASE [--case CASE]... [--data DATA]... [--cells N,N,...]` runs cases
+//! on refined grids and reports how their station chilldowns move (see [`grid`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -37,6 +40,7 @@ use crate::fluid_source;
 mod chaos;
 mod coordinator;
 mod envelope;
+mod grid;
 mod speed;
 
 /// `cryofit bench` subcommands.
@@ -52,6 +56,8 @@ pub enum BenchCommand {
     Chaos(chaos::ChaosArgs),
     /// Speed: how many times faster than physical time cases run on one core.
     Speed(speed::SpeedArgs),
+    /// Grid refinement: cases on finer and finer grids, their station chilldowns and fit.
+    Grid(grid::GridArgs),
 }
 
 /// Arguments of `cryofit bench robustness`.
@@ -79,6 +85,7 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
         BenchCommand::Envelope(args) => envelope::run(args),
         BenchCommand::Chaos(args) => chaos::run(args),
         BenchCommand::Speed(args) => speed::run(args),
+        BenchCommand::Grid(args) => grid::run(args),
     }
 }
 

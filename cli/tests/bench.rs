@@ -297,3 +297,82 @@ fn speed_reports_each_case_against_the_target() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/case.toml"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `bench grid` on the NBS saturated 2.5 atm case at 4 and 8 cells against its data: each run's
+/// station chilldowns are those `cryofit simulate` gives on that grid, the changes and the target
+/// follow from them, the data's chilldowns and the fit are reported; and the errors for too few
+/// grids, a data file per case missing, a grid set by `--set` and data of another line.
+#[test]
+fn grid_reports_each_grid_and_the_change_between_the_finest() {
+    let nbs = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/nbs");
+    let case = format!("{nbs}/saturated-2.5atm.toml");
+    let data = format!("{nbs}/saturated-2.5atm-data.csv");
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_cryofit")).args(args).output().unwrap();
+    let out = run(&[
+        "bench",
+        "grid",
+        "--case",
+        &case,
+        "--data",
+        &data,
+        "--cells",
+        "8,4",
+        "--set",
+        "case.time.end_s=450",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["cells"], serde_json::json!([4, 8]));
+    let c = &v["cases"][0];
+    assert_eq!(c["station"], "TS4");
+    let runs = c["runs"].as_array().unwrap();
+    assert_eq!(runs.iter().map(|r| r["cells"].as_u64().unwrap()).collect::<Vec<_>>(), [4, 8]);
+    let ts4 = |r: &serde_json::Value| r["chilldown_s"]["TS4"].as_f64().expect("a station-4 chilldown");
+    // the 8-cell run is the one `cryofit simulate` makes on that grid
+    let dir = std::env::temp_dir().join(format!("cryofit-bench-grid-{}", std::process::id()));
+    let sim = run(&[
+        "simulate",
+        &case,
+        "--set",
+        "case.time.end_s=450",
+        "--set",
+        "case.pipe.cells=8",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(runs[1]["chilldown_s"], summary["chilldown_time_s"]);
+    assert_eq!(runs[1]["steps"], summary["steps"]);
+    let change = (ts4(&runs[1]) / ts4(&runs[0]) - 1.0) * 100.0;
+    assert!((c["finest_change_pct"]["TS4"].as_f64().unwrap() - change).abs() < 1e-9);
+    let coarse = (ts4(&runs[0]) / ts4(&runs[1]) - 1.0) * 100.0;
+    assert!((c["coarsest_from_finest_pct"]["TS4"].as_f64().unwrap() - coarse).abs() < 1e-9);
+    assert_eq!(c["target_met"], change.abs() <= 2.0);
+    // against the data: its chilldowns (about 245 s at station 4), each run's errors and RMS
+    let d4 = c["data_chilldown_s"]["TS4"].as_f64().unwrap();
+    assert!((240.0..250.0).contains(&d4), "{d4}");
+    for r in runs {
+        let e = r["chilldown_error_pct"]["TS4"].as_f64().unwrap();
+        assert!((e - (ts4(r) / d4 - 1.0) * 100.0).abs() < 1e-9);
+        let rms = r["wall_rms_k"].as_f64().unwrap();
+        assert!(rms > 0.0 && rms < 200.0, "{rms}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let fails = |args: &[&str], says: &str| {
+        let out = run(&[&["bench", "grid", "--case", &case], args].concat());
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{err}");
+    };
+    fails(&["--cells", "30,30"], "at least two different");
+    fails(&["--cells", "10,20", "--case", &case, "--data", &data], "one data file per case");
+    fails(&["--cells", "10,20", "--set", "case.pipe.cells=12"], "given by --cells");
+    let other = std::env::temp_dir().join(format!("cryofit-bench-grid-{}.csv", std::process::id()));
+    std::fs::write(&other, "time_s,station,x_m,quantity,value\n0,TX,1,wall_temperature_k,290\n").unwrap();
+    fails(&["--cells", "10,20", "--data", other.to_str().unwrap()], "`TX`");
+    let _ = std::fs::remove_file(&other);
+}
