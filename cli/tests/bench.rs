@@ -362,6 +362,61 @@ fn grid_reports_each_grid_and_the_change_between_the_finest() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 
+    // the same runs as a calibration file's experiment: its [fixed] values under --set, its
+    // experiment name for per-experiment values
+    let calibration = std::env::temp_dir().join(format!("cryofit-bench-grid-{}.toml", std::process::id()));
+    std::fs::write(
+        &calibration,
+        format!(
+            "name = \"grid\"\n[[experiments]]\ncase = \"{case}\"\ndata = \"{data}\"\nname = \"s25\"\n\
+             [[parameters]]\nname = \"fwsc\"\n[fixed]\nGwsc = 0.5\n\
+             [[stages]]\nalgorithm = \"cmaes\"\nbudget = 4\n"
+        ),
+    )
+    .unwrap();
+    // the runs without their wall times
+    let runs_of = |v: &serde_json::Value| {
+        let mut runs = v["cases"][0]["runs"].clone();
+        runs.as_array_mut().unwrap().iter_mut().for_each(|r| {
+            r.as_object_mut().unwrap().remove("wall_time_s");
+        });
+        runs
+    };
+    let grid = |args: &[&str]| {
+        let out = run(&[&["bench", "grid", "--cells", "4,8", "--json"], args].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let by_case = grid(&[
+        "--case",
+        &case,
+        "--data",
+        &data,
+        "--set",
+        "Gwsc=0.5",
+        "--set",
+        "case.time.end_s=450",
+        "--set",
+        "fwsc=1.1",
+    ]);
+    let cal = grid(&[
+        "--calibration",
+        calibration.to_str().unwrap(),
+        "--set",
+        "case.time.end_s@s25=450",
+        "--set",
+        "fwsc=1.1",
+    ]);
+    assert_eq!(runs_of(&cal), runs_of(&by_case));
+    assert_ne!(runs_of(&cal), runs_of(&v), "Gwsc 0.5 changes the runs");
+    // a --set over a [fixed] value wins
+    let over =
+        grid(&["--calibration", calibration.to_str().unwrap(), "--set", "case.time.end_s@s25=450", "--set", "Gwsc=1"]);
+    assert_eq!(runs_of(&over), runs_of(&v));
+    let both = run(&["bench", "grid", "--calibration", calibration.to_str().unwrap(), "--case", &case]);
+    assert!(!both.status.success());
+    let _ = std::fs::remove_file(&calibration);
+
     let fails = |args: &[&str], says: &str| {
         let out = run(&[&["bench", "grid", "--case", &case], args].concat());
         assert!(!out.status.success());

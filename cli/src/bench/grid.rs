@@ -1,6 +1,6 @@
-//! `cryofit bench grid --case CASE [--case CASE]... [--data DATA.csv]... [--cells N,N,...]
-//! [--params FILE] [--set NAME=VALUE]... [--json]`: how a run's station chilldowns move as its
-//! grid is refined.
+//! `cryofit bench grid (--case CASE [--case CASE]... [--data DATA.csv]... | --calibration FILE)
+//! [--cells N,N,...] [--params FILE] [--set NAME=VALUE]... [--json]`: how a run's station
+//! chilldowns move as its grid is refined.
 //!
 //! Each case is run on every grid of `--cells` (its `pipe.cells` replaced; everything else as
 //! `cryofit simulate` takes it, `--params` and `--set` included), all runs on all cores, the
@@ -11,13 +11,16 @@
 //! 240 to 480 cells; here: between the two finest grids given). With `--data` (one file per case,
 //! in the order of the cases) each run is also compared with its measurements: every station's
 //! chilldown error and the wall-temperature RMS (the quadratic mean of the stations' RMS), so that a calibrated point's
-//! fit can be read on the grid it was fitted on and on finer ones.
+//! fit can be read on the grid it was fitted on and on finer ones; `--calibration` takes the cases,
+//! their data and their experiment names (for per-experiment values of `--params`) from a
+//! calibration file.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
+use cryofit_calib::config::CalibrationSpec;
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
 use cryofit_calib::model::probes_dataset;
@@ -43,11 +46,16 @@ const CELLS_FIELD: &str = "case.pipe.cells";
 #[derive(Debug, Args)]
 pub struct GridArgs {
     /// A case file (repeatable).
-    #[arg(long = "case", value_name = "CASE.toml", required = true)]
+    #[arg(long = "case", value_name = "CASE.toml", required_unless_present = "calibration")]
     cases: Vec<PathBuf>,
     /// Measured data of each case, in the order of the cases (give one per case or none).
     #[arg(long = "data", value_name = "DATA.csv")]
     data: Vec<PathBuf>,
+    /// A calibration file whose experiments (case and data, as experiments of that name) are
+    /// the runs, in place of `--case` and `--data`, with its `[fixed]` values where `--params`
+    /// and `--set` do not set them: `--params` its `best.toml` checks a fit on finer grids.
+    #[arg(long, value_name = "CALIBRATION.toml", conflicts_with_all = ["cases", "data"])]
+    calibration: Option<PathBuf>,
     /// The grids: numbers of cells, comma-separated (at least two different ones).
     #[arg(long, value_name = "N,N,...", value_delimiter = ',', default_values_t = [30, 60, 120, 240, 480])]
     cells: Vec<usize>,
@@ -114,6 +122,8 @@ struct CaseReport {
 #[derive(Debug, Serialize)]
 struct Report {
     cells: Vec<usize>,
+    /// The `--calibration` file, if the runs are its experiments.
+    calibration: Option<String>,
     params: Option<String>,
     /// The registry parameters and case fields set by `--params` and `--set`, by name.
     set: BTreeMap<String, f64>,
@@ -166,20 +176,74 @@ struct Prepared {
     station: String,
 }
 
-fn prepare(args: &GridArgs, k: usize, cells: &[usize]) -> Result<Prepared> {
-    let file = &args.cases[k];
+/// One case to run on every grid: its file, its data file and the experiment it is taken as.
+struct Item {
+    case: PathBuf,
+    data: Option<PathBuf>,
+    experiment: String,
+    /// The calibration's `[fixed]` values, for the parameters `--params` and `--set` leave.
+    fixed: BTreeMap<String, f64>,
+}
+
+/// The runs of `--case` and `--data`, or of `--calibration`'s experiments (their paths taken
+/// from the calibration file's folder).
+fn items(args: &GridArgs) -> Result<Vec<Item>> {
+    let Some(file) = &args.calibration else {
+        if !args.data.is_empty() && args.data.len() != args.cases.len() {
+            bail!(
+                "--data given {} times for {} cases: give one data file per case, in the order of the cases, or none",
+                args.data.len(),
+                args.cases.len()
+            );
+        }
+        return Ok(args
+            .cases
+            .iter()
+            .enumerate()
+            .map(|(k, c)| Item {
+                case: c.clone(),
+                data: args.data.get(k).cloned(),
+                experiment: experiment_of(c, None),
+                fixed: BTreeMap::new(),
+            })
+            .collect());
+    };
+    let label = file.display().to_string();
+    let text = std::fs::read_to_string(file).with_context(|| format!("--calibration: cannot read {label}"))?;
+    let spec = CalibrationSpec::from_toml(&text, &label)?;
+    let base = file.parent().unwrap_or_else(|| std::path::Path::new("."));
+    Ok(spec
+        .experiments
+        .iter()
+        .enumerate()
+        .map(|(k, e)| Item {
+            case: base.join(&e.case),
+            data: Some(base.join(&e.data)),
+            experiment: e.label(k),
+            fixed: spec.fixed.clone(),
+        })
+        .collect())
+}
+
+fn prepare(args: &GridArgs, item: &Item, cells: &[usize]) -> Result<Prepared> {
+    let file = &item.case;
     let path = file.display().to_string();
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {path}"))?;
     let case = Case::from_toml(&text, &path)?;
-    let experiment = experiment_of(file, None);
-    let (applied, params, _) = case_parameters(&case, &path, &experiment, args.params.as_deref(), &args.set)?;
+    let experiment = item.experiment.clone();
+    let (applied, mut params, sources) = case_parameters(&case, &path, &experiment, args.params.as_deref(), &args.set)?;
+    for (name, &value) in &item.fixed {
+        if !sources.iter().any(|s| s.values.contains_key(name)) {
+            params.set(name, value).map_err(|e| anyhow!("[fixed] {name} of the calibration: {e}"))?;
+        }
+    }
     let station = applied
         .case
         .stations
         .last()
         .map(|s| s.name.clone())
         .ok_or_else(|| anyhow!("{path}: the case has no stations, so no chilldown times to compare"))?;
-    let data = match args.data.get(k) {
+    let data = match &item.data {
         None => None,
         Some(d) => {
             let name = d.display().to_string();
@@ -254,18 +318,11 @@ fn run_one(p: &Prepared, cells: usize, case: &Case, params: &ParameterSet) -> Ru
 /// Runs `cryofit bench grid`.
 pub fn run(args: &GridArgs) -> Result<()> {
     let cells = grids(&args.cells)?;
-    if !args.data.is_empty() && args.data.len() != args.cases.len() {
-        bail!(
-            "--data given {} times for {} cases: give one data file per case, in the order of the cases, or none",
-            args.data.len(),
-            args.cases.len()
-        );
-    }
     if let Some(s) = args.set.iter().find(|s| s.split('=').next().is_some_and(|n| n.trim().starts_with(CELLS_FIELD))) {
         bail!("--set {s}: the grids are given by --cells");
     }
     let clock = std::time::Instant::now();
-    let prepared: Vec<Prepared> = (0..args.cases.len()).map(|k| prepare(args, k, &cells)).collect::<Result<_>>()?;
+    let prepared: Vec<Prepared> = items(args)?.iter().map(|item| prepare(args, item, &cells)).collect::<Result<_>>()?;
     // every (case, grid), the finest first so that the longest runs start first
     let mut jobs: Vec<(usize, usize)> =
         (0..prepared.len()).flat_map(|c| (0..cells.len()).map(move |g| (c, g))).collect();
@@ -318,6 +375,7 @@ pub fn run(args: &GridArgs) -> Result<()> {
     let report = Report {
         target_met: cases.iter().all(|c| c.target_met),
         cells,
+        calibration: args.calibration.as_ref().map(|p| p.display().to_string()),
         params: args.params.as_ref().map(|p| p.display().to_string()),
         set: args.set.iter().filter_map(|s| parse_set(s).ok()).flat_map(|v| v.values).collect(),
         cases,
@@ -336,7 +394,8 @@ fn print_report(r: &Report) {
     let mut with: Vec<String> = r.params.iter().cloned().collect();
     with.extend(r.set.iter().map(|(k, v)| format!("{k}={v}")));
     let set = if with.is_empty() { String::new() } else { format!(" (with {})", with.join(", ")) };
-    println!("Grid refinement on {} cells{set}, {:.1} s", join(&r.cells), r.wall_time_s);
+    let of = r.calibration.as_ref().map_or_else(String::new, |c| format!(" of the experiments of {c}"));
+    println!("Grid refinement{of} on {} cells{set}, {:.1} s", join(&r.cells), r.wall_time_s);
     for c in &r.cases {
         println!("{}{}", c.case, c.data.as_ref().map_or_else(String::new, |d| format!(" against {d}")));
         let stations: Vec<&String> = c.runs.last().map(|r| r.chilldown_s.keys().collect()).unwrap_or_default();
