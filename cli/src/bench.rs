@@ -89,6 +89,16 @@ pub fn run(cmd: &BenchCommand) -> Result<()> {
     }
 }
 
+/// Prints a report: as JSON with `--json`, else as the command's text (`text`).
+fn emit<R: Serialize>(report: &R, json: bool, text: impl FnOnce(&R)) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    } else {
+        text(report);
+    }
+    Ok(())
+}
+
 /// The robustness report (`--json` prints it).
 #[derive(Debug, Serialize)]
 struct Report {

@@ -199,12 +199,7 @@ pub fn run(args: &ChaosArgs) -> Result<()> {
         target_s: TARGET_S,
         wall_time_s: clock.elapsed().as_secs_f64(),
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
-    print_report(&report);
-    Ok(())
+    super::emit(&report, args.json, print_report)
 }
 
 /// Mean and sample standard deviation of `xs` (`None` for an empty slice; no deviation below two).

@@ -329,12 +329,7 @@ pub fn run(args: &EnvelopeArgs) -> Result<()> {
         totals: totals(&runs),
         runs,
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_table(&report);
-    }
-    Ok(())
+    super::emit(&report, args.json, print_table)
 }
 
 fn check_args(args: &EnvelopeArgs) -> Result<()> {

@@ -382,12 +382,7 @@ pub fn run(args: &GridArgs) -> Result<()> {
         target_change_pct: TARGET_CHANGE * 100.0,
         wall_time_s: clock.elapsed().as_secs_f64(),
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
-    print_report(&report);
-    Ok(())
+    super::emit(&report, args.json, print_report)
 }
 
 fn print_report(r: &Report) {

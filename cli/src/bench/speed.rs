@@ -133,12 +133,7 @@ pub fn run(args: &SpeedArgs) -> Result<()> {
         failures,
         slowest_speed,
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_report(&report);
-    }
-    Ok(())
+    super::emit(&report, args.json, print_report)
 }
 
 /// One case ready to run: the case with its `--params` and `--set` case fields applied, its
