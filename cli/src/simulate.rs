@@ -85,35 +85,7 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
     }
     let table = fluid_source::load(&case.fluid.name)?;
     // read the data before the run: a bad file is reported before minutes of simulation
-    let data = match &args.data {
-        Some(path) => {
-            let file = path.display().to_string();
-            let text = std::fs::read_to_string(path).with_context(|| format!("--data: cannot read {file}"))?;
-            let data = Dataset::from_csv(&text, &file).map_err(|e| anyhow!("--data: {e}"))?;
-            if data.is_empty() {
-                bail!("--data {file}: no readings to compare with");
-            }
-            for (station, quantity) in data.series.keys() {
-                if !case.stations.iter().any(|s| &s.name == station) {
-                    let names: Vec<&str> = case.stations.iter().map(|s| s.name.as_str()).collect();
-                    bail!(
-                        "--data {file}: {quantity} at station `{station}`, which {case_path} does not probe \
-                         (its [[stations]]: {})",
-                        if names.is_empty() { "none".to_string() } else { names.join(", ") }
-                    );
-                }
-            }
-            if data.end_time() > case.time.end_s {
-                bail!(
-                    "--data {file}: readings run to {} s, past the case's time.end_s = {} s",
-                    data.end_time(),
-                    case.time.end_s
-                );
-            }
-            Some((file, data))
-        }
-        None => None,
-    };
+    let data = args.data.as_deref().map(|path| read_case_data(path, &case, &case_path)).transpose()?;
 
     let mut bar = RunProgress::new();
     let mut attempts: Vec<StepAttempt> = Vec::new();
@@ -158,6 +130,35 @@ pub fn run(args: &SimulateArgs) -> Result<()> {
         print_comparison(c);
     }
     Ok(())
+}
+
+/// Reads `--data` for `case` (at `case_path`): the file's name and its readings, which must be
+/// stations the case probes, within its `time.end_s`. Errors name the file and what to do.
+pub(crate) fn read_case_data(path: &Path, case: &Case, case_path: &str) -> Result<(String, Dataset)> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("--data: cannot read {file}"))?;
+    let data = Dataset::from_csv(&text, &file).map_err(|e| anyhow!("--data: {e}"))?;
+    if data.is_empty() {
+        bail!("--data {file}: no readings to compare with");
+    }
+    for (station, quantity) in data.series.keys() {
+        if !case.stations.iter().any(|s| &s.name == station) {
+            let names: Vec<&str> = case.stations.iter().map(|s| s.name.as_str()).collect();
+            bail!(
+                "--data {file}: {quantity} at station `{station}`, which {case_path} does not probe \
+                 (its [[stations]]: {})",
+                if names.is_empty() { "none".to_string() } else { names.join(", ") }
+            );
+        }
+    }
+    if data.end_time() > case.time.end_s {
+        bail!(
+            "--data {file}: readings run to {} s, past the case's time.end_s = {} s",
+            data.end_time(),
+            case.time.end_s
+        );
+    }
+    Ok((file, data))
 }
 
 /// The run against measured data: RMS per station and quantity, chilldown of model and data.

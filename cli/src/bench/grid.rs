@@ -34,6 +34,7 @@ use serde::Serialize;
 use crate::fluid_source;
 use crate::output::chilldown_pairs;
 use crate::param_values::{apply_case_fields, case_parameters, experiment_of, parse_set};
+use crate::simulate::read_case_data;
 
 /// Largest change of the last station's chilldown between the two finest grids that the target
 /// allows, as a fraction.
@@ -243,25 +244,8 @@ fn prepare(args: &GridArgs, item: &Item, cells: &[usize]) -> Result<Prepared> {
         .last()
         .map(|s| s.name.clone())
         .ok_or_else(|| anyhow!("{path}: the case has no stations, so no chilldown times to compare"))?;
-    let data = match &item.data {
-        None => None,
-        Some(d) => {
-            let name = d.display().to_string();
-            let text = std::fs::read_to_string(d).with_context(|| format!("--data: cannot read {name}"))?;
-            let data = Dataset::from_csv(&text, &name).map_err(|e| anyhow!("--data: {e}"))?;
-            if data.is_empty() {
-                bail!("--data {name}: no readings to compare with");
-            }
-            if let Some((st, q)) =
-                data.series.keys().find(|(st, _)| !applied.case.stations.iter().any(|s| &s.name == st))
-            {
-                bail!(
-                    "--data {name}: {q} at station `{st}`, which {path} does not probe (is it the data of this case?)"
-                );
-            }
-            Some((name, data))
-        }
-    };
+    // read before the runs: a bad file is reported before minutes of simulation
+    let data = item.data.as_deref().map(|d| read_case_data(d, &applied.case, &path)).transpose()?;
     let table = fluid_source::load(&applied.case.fluid.name)?;
     let mut runs = Vec::new();
     for &n in cells {
