@@ -18,8 +18,9 @@
 //! `cryofit bench speed --case CASE [--case CASE]... [--repeats N] [--json]` measures how many
 //! times faster than physical time each case runs on one core (see [`speed`]).
 //!
-//! `cryofit bench grid --case CASE [--case CASE]... [--data DATA]... [--cells N,N,...]` runs cases
-//! on refined grids and reports how their station chilldowns move (see [`grid`]).
+//! `cryofit bench grid (--case CASE [--case CASE]... [--data DATA]... | --calibration FILE)
+//! [--cells N,N,...]` runs cases on refined grids and reports how their station chilldowns move
+//! (see [`grid`]).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;

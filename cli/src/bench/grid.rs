@@ -172,8 +172,10 @@ struct Prepared {
     path: String,
     data: Option<(String, Dataset)>,
     table: std::borrow::Cow<'static, FluidTable>,
-    /// (cells, case, parameters) per grid.
-    grids: Vec<(usize, Case, ParameterSet)>,
+    /// The parameters of every run.
+    params: ParameterSet,
+    /// (cells, case) per grid.
+    grids: Vec<(usize, Case)>,
     station: String,
 }
 
@@ -251,12 +253,12 @@ fn prepare(args: &GridArgs, item: &Item, cells: &[usize]) -> Result<Prepared> {
     for &n in cells {
         let grid = parse_set(&format!("{CELLS_FIELD}={n}"))?;
         let on_grid = apply_case_fields(&applied.case, &path, &experiment, &[&grid])?;
-        runs.push((n, on_grid.case, params.clone()));
+        runs.push((n, on_grid.case));
     }
-    Ok(Prepared { path, data, table, grids: runs, station })
+    Ok(Prepared { path, data, table, params, grids: runs, station })
 }
 
-fn run_one(p: &Prepared, cells: usize, case: &Case, params: &ParameterSet) -> Run {
+fn run_one(p: &Prepared, cells: usize, case: &Case) -> Run {
     let mut run = Run {
         cells,
         error: None,
@@ -270,7 +272,7 @@ fn run_one(p: &Prepared, cells: usize, case: &Case, params: &ParameterSet) -> Ru
         data_error: None,
         data_chilldown_s: BTreeMap::new(),
     };
-    let out = match driver::run(case, &p.table, params, &mut |_| {}) {
+    let out = match driver::run(case, &p.table, &p.params, &mut |_| {}) {
         Ok(out) => out,
         Err(e) => {
             run.error = Some(e.to_string());
@@ -293,7 +295,7 @@ fn run_one(p: &Prepared, cells: usize, case: &Case, params: &ParameterSet) -> Ru
                 let wall = fit.series.iter().filter(|((_, q), _)| q == "wall_temperature_k");
                 run.wall_rms_k = station_rms(wall.map(|(_, s)| s.rms));
             }
-            Err(e) => run.data_error = Some(format!("{name}: {e} (time.end_s must cover the data)")),
+            Err(e) => run.data_error = Some(format!("{name}: {e}")),
         }
     }
     run
@@ -314,8 +316,8 @@ pub fn run(args: &GridArgs) -> Result<()> {
     let mut done: Vec<((usize, usize), Run)> = jobs
         .par_iter()
         .map(|&(c, g)| {
-            let (n, case, params) = &prepared[c].grids[g];
-            ((c, g), run_one(&prepared[c], *n, case, params))
+            let (n, case) = &prepared[c].grids[g];
+            ((c, g), run_one(&prepared[c], *n, case))
         })
         .collect();
     done.sort_by_key(|(key, _)| *key);
