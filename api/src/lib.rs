@@ -162,7 +162,9 @@ pub struct CreateCalibration {
     /// `start`: where the calibration starts, within the bounds.
     #[schema(value_type = Vec<Object>)]
     pub parameters: Vec<ParameterSpec>,
-    /// Other parameters held at given values.
+    /// Other parameters held at given values: registry names, or case fields set in every
+    /// experiment's case (`case.<path>`, `"case.pipe.cells": 120`) or in one's
+    /// (`case.<path>@<experiment name>`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub fixed: BTreeMap<String, f64>,
     /// Weight η and noise σ per quantity: `{"wall_temperature_k": {"weight": 1, "sigma": 1}}`.
@@ -369,7 +371,7 @@ pub struct LeasedJob {
 pub struct JobContext {
     /// Calibration.
     pub calibration_id: i64,
-    /// Fixed parameter values.
+    /// Fixed parameter values (registry names and case fields, as in the calibration's `fixed`).
     pub fixed: BTreeMap<String, f64>,
     /// Weights of the cost.
     #[schema(value_type = Object)]

@@ -19,6 +19,7 @@
 //! experiments = ["subcooled-4.2atm"]   # optional: one copy per experiment listed
 //! [fixed]                    # other parameters held at given values (default: registry)
 //! tauw = 2.0
+//! "case.pipe.cells" = 120    # a case field, in every experiment's case
 //! [weights]                  # per quantity: η and σ
 //! wall_temperature_k = { weight = 1.0, sigma = 1.0 }
 //! [[stages]]                 # in order
@@ -37,8 +38,12 @@
 //! each listed experiment gets its own copy, named `case.<path>@<experiment name>` in results,
 //! and the experiments not listed keep their case's value. Whether the field exists and accepts
 //! the bounds is checked against each case it applies to
-//! ([`CalibrationSpec::check_case_fields`]) once the cases are read. A case field cannot be
-//! `[fixed]`: its fixed value is the one in the case file.
+//! ([`CalibrationSpec::check_case_fields`]) once the cases are read.
+//!
+//! `[fixed]` may hold case fields too, by the same names: `"case.pipe.cells" = 120` sets the
+//! field in every experiment's case (the grid a fit is made on), `"case.inlet.loss_coefficient@a"
+//! = 7.9` in experiment `a`'s case only (`a` its name), over the case files' values. A fixed field
+//! cannot also be free.
 
 use std::collections::BTreeMap;
 
@@ -476,13 +481,8 @@ impl CalibrationSpec {
         for (name, &value) in &self.fixed {
             let field = format!("fixed.{name}");
             if apparatus::is_case_name(name) {
-                return Err(SpecError::CaseParameter {
-                    field,
-                    value: name.clone(),
-                    need: "a case field keeps the value in its case file: set it there, or make it a free parameter \
-                           with bounds"
-                        .into(),
-                });
+                self.check_fixed_case_field(&field, name, value)?;
+                continue;
             }
             let spec = registry_spec(&field, name)?;
             if !(value.is_finite() && value >= spec.lower && value <= spec.upper) {
@@ -673,6 +673,34 @@ impl CalibrationSpec {
         }
     }
 
+    /// Checks `[fixed]` case field `name` (at `field`, value `value`): a well-formed field name,
+    /// its experiment (after `@`) one of this calibration's by name, a finite value, and the field
+    /// not also free. Whether the cases have the field and accept the value is checked once they
+    /// are read ([`CalibrationSpec::check_case_fields`]).
+    fn check_fixed_case_field(&self, field: &str, name: &str, value: f64) -> Result<(), SpecError> {
+        let refuse = |need: String| SpecError::CaseParameter { field: field.into(), value: name.into(), need };
+        let Some(case) = apparatus::case_name(name) else { return Ok(()) };
+        check_case_name(field, &format!("{}{}", apparatus::CASE_PREFIX, case.path))?;
+        if let Some(experiment) = case.experiment {
+            let labels: Vec<String> = self.experiments.iter().enumerate().map(|(k, e)| e.label(k)).collect();
+            if !labels.iter().any(|l| l == experiment) {
+                return Err(refuse(format!(
+                    "`{experiment}` after `@` is not an experiment of this calibration (its experiments: {}); give \
+                     an experiment's name",
+                    labels.join(", ")
+                )));
+            }
+        }
+        if !value.is_finite() {
+            return Err(refuse(format!("the value {value} is not a finite number")));
+        }
+        let shared = format!("{}{}", apparatus::CASE_PREFIX, case.path);
+        if let Some(k) = self.parameters.iter().position(|p| p.name == shared) {
+            return Err(refuse(format!("`{shared}` is also a free parameter (parameters[{k}]); list it in one place")));
+        }
+        Ok(())
+    }
+
     /// Refuses a case field that is free both for every experiment and for some experiments.
     fn check_case_field_overlap(&self) -> Result<(), SpecError> {
         for (k, p) in self.parameters.iter().enumerate() {
@@ -719,6 +747,25 @@ impl CalibrationSpec {
     /// (`case_label` names the file): the field exists, holds a number, and the case accepts both
     /// bounds. Errors name the parameter, the experiment, the case, the bound and the field.
     pub fn check_case_fields(&self, experiment: &str, case: &Case, case_label: &str) -> Result<(), SpecError> {
+        // the fixed case fields that apply here, one at a time so that an error names its own
+        for (path, value) in apparatus::sort(&self.fixed, Some(experiment)).case {
+            if let Err(error) = case.with_fields(&[(path.as_str(), value)]) {
+                let specific = format!("{}{path}{}{experiment}", apparatus::CASE_PREFIX, apparatus::EXPERIMENT_MARK);
+                let name = if self.fixed.contains_key(&specific) {
+                    specific
+                } else {
+                    format!("{}{path}", apparatus::CASE_PREFIX)
+                };
+                return Err(SpecError::CaseField {
+                    field: format!("fixed.{name}"),
+                    name,
+                    experiment: experiment.to_string(),
+                    case_label: case_label.to_string(),
+                    bound: None,
+                    error: Box::new(error),
+                });
+            }
+        }
         for (k, p) in self.parameters.iter().enumerate() {
             let Some(name) = apparatus::case_name(&p.name) else { continue };
             let applies = match self.copies(k)? {
@@ -886,14 +933,15 @@ pub enum SpecError {
         /// What is wrong and what to do, in words.
         need: String,
     },
-    /// A free case field that an experiment's case does not have, or whose bounds it refuses.
+    /// A free case field that an experiment's case does not have, or whose bounds it refuses; a
+    /// fixed one that it does not have or whose value it refuses.
     #[error(
         "{field} ({name}), experiment `{experiment}` ({case_label}){}: {error}{}",
         bound.map(|b| format!(", at the {b} bound")).unwrap_or_default(),
         if bound.is_some() { "; keep the bounds within the values the case accepts" } else { "" }
     )]
     CaseField {
-        /// The field path (`parameters[k]`).
+        /// The field path (`parameters[k]`, `fixed.<name>`).
         field: String,
         /// The parameter.
         name: String,
@@ -1169,8 +1217,50 @@ budget = 50
             "{e}"
         );
         let e = bad("[[stages]]", "[fixed]\n\"case.inlet.loss_coefficient\" = 3.0\n[[stages]]");
-        assert!(e.contains("fixed.case.inlet.loss_coefficient (`case.inlet.loss_coefficient`): a case field keeps the value in its case file"), "{e}");
+        assert!(
+            e.contains(
+                "fixed.case.inlet.loss_coefficient (`case.inlet.loss_coefficient`): `case.inlet.loss_coefficient` is \
+                 also a free parameter (parameters[0]); list it in one place"
+            ),
+            "{e}"
+        );
         assert!(e.starts_with("c.toml: "), "{e}");
+        let e = bad("[[stages]]", "[fixed]\n\"case.pipe.cells@c\" = 10\n[[stages]]");
+        assert!(e.contains("fixed.case.pipe.cells@c (`case.pipe.cells@c`): `c` after `@` is not an experiment"), "{e}");
+        assert!(e.contains("its experiments: a, run-b"), "{e}");
+        let e = bad("[[stages]]", "[fixed]\n\"case.pipe..cells\" = 10\n[[stages]]");
+        assert!(e.contains("fixed.case.pipe..cells (`case.pipe..cells`): not a case field"), "{e}");
+    }
+
+    #[test]
+    fn fixed_case_fields_apply_to_every_case_or_to_their_experiment() {
+        let text = APPARATUS.replace(
+            "[[stages]]",
+            "[fixed]\n\"case.pipe.cells\" = 12\n\"case.inlet.pressure_pa@run-b\" = 3.0e5\nGwsc = 1.5\n[[stages]]",
+        );
+        let text = text.replace("name = \"Gwsc\"", "name = \"Gisc\"");
+        let c = CalibrationSpec::from_toml(&text, "c.toml").unwrap();
+        let case = Case::from_toml(include_str!("../../tests/fixtures/tiny.toml"), "runs/a.toml").unwrap();
+        c.check_case_fields("a", &case, "runs/a.toml").unwrap();
+        c.check_case_fields("run-b", &case, "runs/b.toml").unwrap();
+        // the JSON twin (a coordinator's request) keeps them
+        let json = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<CalibrationSpec>(&json).unwrap(), c);
+        // a value the case refuses, named with the experiment and the case
+        let refused = text.replace("\"case.pipe.cells\" = 12", "\"case.pipe.cells\" = 0");
+        let c = CalibrationSpec::from_toml(&refused, "c.toml").unwrap();
+        let e = c.check_case_fields("a", &case, "runs/a.toml").unwrap_err();
+        assert_eq!(e.field(), "fixed.case.pipe.cells");
+        assert!(
+            e.to_string().starts_with("fixed.case.pipe.cells (case.pipe.cells), experiment `a` (runs/a.toml): "),
+            "{e}"
+        );
+        let unknown = text.replace("case.inlet.pressure_pa@run-b", "case.inlet.presure_pa@run-b");
+        let c = CalibrationSpec::from_toml(&unknown, "c.toml").unwrap();
+        c.check_case_fields("a", &case, "runs/a.toml").unwrap();
+        let e = c.check_case_fields("run-b", &case, "runs/b.toml").unwrap_err();
+        assert_eq!(e.field(), "fixed.case.inlet.presure_pa@run-b");
+        assert!(e.to_string().contains("`inlet.presure_pa` is not a field"), "{e}");
     }
 
     #[test]

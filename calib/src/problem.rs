@@ -192,6 +192,16 @@ pub enum BuildError {
         /// The loader's reason.
         message: String,
     },
+    /// A `[fixed]` case field that the case does not have or whose value it refuses.
+    #[error("{case_label}: fixed.{name}: {error}")]
+    FixedCaseField {
+        /// Names the case.
+        case_label: String,
+        /// The fixed value's name (`case.<path>` or `case.<path>@<experiment>`).
+        name: String,
+        /// Why.
+        error: cryofit_solver::case::FieldError,
+    },
     /// The model cannot be built (for example the case's `[parameters]`).
     #[error("{case_label}: {error}")]
     Model {
@@ -232,6 +242,69 @@ pub fn default_start(
         .collect()
 }
 
+/// The values a calibration holds fixed (its `[fixed]` table) as experiments are built with them:
+/// the registry parameters as a parameter set, and the case fields (`case.<path>` for every
+/// experiment, `case.<path>@<experiment>` for one), which are set in the cases before anything
+/// else reads them, so that `"case.pipe.cells" = 120` makes every experiment run on 120 cells.
+#[derive(Debug, Clone, Default)]
+pub struct Fixed {
+    params: cryofit_solver::params::ParameterSet,
+    case_fields: BTreeMap<String, f64>,
+}
+
+impl Fixed {
+    /// The fixed values `values` by name; an error names the value that is no registry parameter
+    /// or lies outside its bounds. Case fields are checked where they are applied
+    /// ([`Fixed::apply`]).
+    pub fn new(values: &BTreeMap<String, f64>) -> Result<Self, FixedError> {
+        let mut fixed = Self::default();
+        for (name, &value) in values {
+            if crate::apparatus::is_case_name(name) {
+                fixed.case_fields.insert(name.clone(), value);
+            } else {
+                fixed.params.set(name, value).map_err(|error| FixedError { name: name.clone(), error })?;
+            }
+        }
+        Ok(fixed)
+    }
+
+    /// The fixed registry parameters.
+    pub fn params(&self) -> &cryofit_solver::params::ParameterSet {
+        &self.params
+    }
+
+    /// `case` with the fixed case fields of experiment `experiment` set (a per-experiment value
+    /// over a shared one), or the name of the first one it refuses and why.
+    pub fn apply(
+        &self,
+        case: cryofit_solver::case::Case,
+        experiment: &str,
+    ) -> Result<cryofit_solver::case::Case, (String, cryofit_solver::case::FieldError)> {
+        let sorted = crate::apparatus::sort(&self.case_fields, Some(experiment));
+        let mut case = case;
+        for (path, value) in sorted.case {
+            let specific = crate::apparatus::copy_name(&format!("{}{path}", crate::apparatus::CASE_PREFIX), experiment);
+            let name = if self.case_fields.contains_key(&specific) {
+                specific
+            } else {
+                format!("{}{path}", crate::apparatus::CASE_PREFIX)
+            };
+            case = case.with_fields(&[(path.as_str(), value)]).map_err(|error| (name, error))?;
+        }
+        Ok(case)
+    }
+}
+
+/// A `[fixed]` registry value that the registry refuses.
+#[derive(Debug, thiserror::Error)]
+#[error("fixed.{name}: {error}")]
+pub struct FixedError {
+    /// The value's name.
+    pub name: String,
+    /// Why.
+    pub error: cryofit_solver::params::ParamError,
+}
+
 /// Builds one experiment from the texts of its case and data files (`*_label` name them in
 /// errors): checks that every measured station exists in the case, under the same name, and that
 /// the case runs at least as long as the data. The experiment's model runs only to the end of
@@ -239,8 +312,8 @@ pub fn default_start(
 /// per-experiment case fields named `name` apply to it
 /// ([`SolverModel::with_experiment`](crate::model::SolverModel::with_experiment)).
 ///
-/// `fixed` holds parameter values that are not free; `max_evaluation_s` bounds each run's
-/// computing time (a longer run is a failed evaluation).
+/// `fixed` holds the values that are not free, its case fields set in the case first;
+/// `max_evaluation_s` bounds each run's computing time (a longer run is a failed evaluation).
 #[allow(clippy::too_many_arguments)]
 pub fn experiment_from_texts(
     name: &str,
@@ -249,10 +322,15 @@ pub fn experiment_from_texts(
     data_text: &str,
     data_label: &str,
     fluid: impl FnOnce(&str) -> Result<Arc<cryofit_solver::fluids::FluidTable>, String>,
-    fixed: &cryofit_solver::params::ParameterSet,
+    fixed: &Fixed,
     max_evaluation_s: Option<f64>,
 ) -> Result<Experiment, BuildError> {
     let case = cryofit_solver::case::Case::from_toml(case_text, case_label)?;
+    let case = fixed.apply(case, name).map_err(|(name, error)| BuildError::FixedCaseField {
+        case_label: case_label.to_string(),
+        name,
+        error,
+    })?;
     let data = Dataset::from_csv(data_text, data_label)?;
     for (station, quantity) in data.series.keys() {
         if !case.stations.iter().any(|s| &s.name == station) {
@@ -275,7 +353,7 @@ pub fn experiment_from_texts(
     }
     let table =
         fluid(&case.fluid.name).map_err(|message| BuildError::Fluid { case_label: case_label.to_string(), message })?;
-    let model = crate::model::SolverModel::new(case, table, fixed)
+    let model = crate::model::SolverModel::new(case, table, fixed.params())
         .map_err(|error| BuildError::Model { case_label: case_label.to_string(), error })?
         .with_experiment(name)
         .with_wall_limit(max_evaluation_s)

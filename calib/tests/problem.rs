@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use cryofit_calib::model::SolverModel;
-use cryofit_calib::problem::experiment_from_texts;
+use cryofit_calib::problem::{Fixed, experiment_from_texts};
 use cryofit_solver::case::Case;
 use cryofit_solver::fluids::{self, FluidTable};
 use cryofit_solver::params::ParameterSet;
@@ -33,7 +33,7 @@ fn the_model_stops_at_the_first_output_time_after_the_data() {
         &data_ending_at(2.45),
         "data.csv",
         nitrogen,
-        &ParameterSet::new(),
+        &Fixed::default(),
         None,
     )
     .unwrap();
@@ -71,7 +71,7 @@ fn case_fields_of_a_point_set_the_case_of_their_experiment_only() {
         &data_ending_at(4.0),
         "data.csv",
         nitrogen,
-        &ParameterSet::new(),
+        &Fixed::default(),
         None,
     )
     .unwrap();
@@ -177,4 +177,43 @@ fn every_example_calibration_reads_and_names_files_that_exist() {
         seen += 1;
     }
     assert!(seen >= 8, "only {seen} example calibrations found in {}", dir.display());
+}
+
+/// `[fixed]` case fields set the case before the experiment is built: shared ones every
+/// experiment's, `@<experiment>` ones only that experiment's (over a shared value); a value the
+/// case refuses is an error naming it and the case.
+#[test]
+fn fixed_case_fields_set_the_case_an_experiment_is_built_from() {
+    let fixed = Fixed::new(&values(&[
+        ("case.pipe.cells", 7.0),
+        ("case.inlet.loss_coefficient", 6.0),
+        ("case.inlet.loss_coefficient@b", 9.0),
+        ("Gwsc", 1.5),
+    ]))
+    .unwrap();
+    assert_eq!(fixed.params().explicit().len(), 1);
+    let build = |name: &str, fixed: &Fixed| {
+        experiment_from_texts(name, TINY, "tiny.toml", &data_ending_at(4.0), "data.csv", nitrogen, fixed, None)
+    };
+    for (name, k) in [("a", 6.0), ("b", 9.0)] {
+        let e = build(name, &fixed).unwrap();
+        let solver = e.model.as_any().downcast_ref::<SolverModel>().unwrap();
+        assert_eq!(solver.case().pipe.cells, 7, "{name}");
+        assert_eq!(solver.case().inlet.loss_coefficient, k, "{name}");
+        // the case's value is where a free copy of the field starts
+        assert_eq!(e.model.own_value("case.inlet.loss_coefficient"), Some(k), "{name}");
+        let out = e.model.evaluate(&BTreeMap::new()).unwrap();
+        assert!(out.series.contains_key(&("TS1".to_string(), "wall_temperature_k".to_string())));
+    }
+    let e = build("a", &Fixed::new(&values(&[("case.pipe.cells", 0.0)])).unwrap()).unwrap_err();
+    assert!(e.to_string().starts_with("tiny.toml: fixed.case.pipe.cells: "), "{e}");
+    let e = build("b", &Fixed::new(&values(&[("case.inlet.los_coefficient@b", 3.0)])).unwrap()).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("tiny.toml: fixed.case.inlet.los_coefficient@b: `inlet.los_coefficient` is not a field"),
+        "{e}"
+    );
+    // a registry value the registry refuses names itself
+    let e = Fixed::new(&values(&[("Gwscc", 1.0)])).unwrap_err();
+    assert!(e.to_string().starts_with("fixed.Gwscc: "), "{e}");
 }

@@ -26,8 +26,7 @@ use cryofit_calib::config::{AlgorithmName, CalibrationSpec, StageSpec};
 use cryofit_calib::cost;
 use cryofit_calib::inference::InferenceSummary;
 use cryofit_calib::pipeline::{Pipeline, StageReport};
-use cryofit_calib::problem::{Experiment, Problem, default_start, experiment_from_texts};
-use cryofit_solver::params::ParameterSet;
+use cryofit_calib::problem::{Experiment, Fixed, Problem, default_start, experiment_from_texts};
 use cryofit_worker::{Client, WorkerSettings};
 use serde_json::json;
 
@@ -76,10 +75,7 @@ pub fn load(file: &Path) -> Result<Loaded> {
     let mid = vec![0.5; space.dim()];
     Pipeline::new(space.clone(), spec.stages.clone(), mid, spec.seed).map_err(|e| anyhow!("{label}: {e}"))?;
     let dir = file.parent().unwrap_or(Path::new("."));
-    let mut fixed = ParameterSet::new();
-    for (name, &v) in &spec.fixed {
-        fixed.set(name, v).map_err(|e| anyhow!("{label}: fixed.{name}: {e}"))?;
-    }
+    let fixed = Fixed::new(&spec.fixed).map_err(|e| anyhow!("{label}: {e}"))?;
     let mut experiments = Vec::new();
     for (k, e) in spec.experiments.iter().enumerate() {
         let case_path = dir.join(&e.case);

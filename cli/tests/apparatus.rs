@@ -250,6 +250,58 @@ fn a_calibration_frees_shared_and_per_experiment_case_fields() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `[fixed]` case fields: the grid every experiment runs on and one experiment's valve, held at
+/// given values; the fit is made on them, and `best.toml` carries them so that `simulate --params`
+/// reproduces each experiment's fit.
+#[test]
+fn fixed_case_fields_set_the_grid_and_apparatus_of_a_calibration() {
+    let dir = common::scratch("apparatus", "fixed");
+    joint(&dir);
+    let (head, _) = JOINT.split_once("[[parameters]]").unwrap();
+    let text = format!(
+        "{head}[[parameters]]\nname = \"Gwsc\"\nlower = 0.5\nupper = 2.0\n[fixed]\n\"case.pipe.cells\" = 4\n\
+         \"case.inlet.loss_coefficient@b\" = 7.5\n[weights]\nwall_temperature_k = {{ weight = 1.0, sigma = 1.0 }}\n\
+         [[stages]]\nalgorithm = \"pattern\"\nbudget = 4\n"
+    );
+    let file = dir.join("fixed.toml");
+    std::fs::write(&file, &text).unwrap();
+    let out_dir = dir.join("out");
+    let stdout =
+        ok(&cryofit(&["calibrate", file.to_str().unwrap(), "--workers", "2", "--out", out_dir.to_str().unwrap()]));
+    assert!(stdout.contains(" evaluations (0 failed) in "), "{stdout}");
+    let best_toml = std::fs::read_to_string(out_dir.join("best.toml")).unwrap();
+    for line in ["\n\"case.pipe.cells\" = 4.0\n", "\n\"case.inlet.loss_coefficient@b\" = 7.5\n", "\nGwsc = "] {
+        assert!(best_toml.contains(line), "{line} in {best_toml}");
+    }
+    let params = out_dir.join("best.toml");
+    for (exp, k) in [("tiny", None), ("b", Some(7.5))] {
+        let again = dir.join(format!("again-{exp}"));
+        let case = dir.join(format!("{exp}.toml"));
+        let args = [
+            "simulate",
+            case.to_str().unwrap(),
+            "--params",
+            params.to_str().unwrap(),
+            "--out",
+            again.to_str().unwrap(),
+        ];
+        ok(&cryofit(&args));
+        let fit = std::fs::read_to_string(out_dir.join(format!("fit-{exp}.csv"))).unwrap();
+        assert_eq!(fit, std::fs::read_to_string(again.join("probes.csv")).unwrap(), "{exp}");
+        let summary = read_json(&again.join("summary.json"));
+        assert_eq!(summary["case_fields"]["pipe.cells"].as_f64(), Some(4.0), "{exp}");
+        assert_eq!(summary["case_fields"]["inlet.loss_coefficient"].as_f64(), k, "{exp}");
+    }
+    // a fixed value a case refuses: named with the experiment and case, nothing run
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, text.replace("\"case.pipe.cells\" = 4", "\"case.pipe.cells\" = 0")).unwrap();
+    let bad_out = dir.join("bad-out");
+    let err = refused(&cryofit(&["calibrate", bad.to_str().unwrap(), "--out", bad_out.to_str().unwrap()]));
+    assert!(err.contains("bad.toml: ") && err.contains("fixed.case.pipe.cells"), "{err}");
+    assert!(!bad_out.exists(), "output written");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Bad case fields: one line naming the file, the parameter or field and the value, nothing run.
 #[test]
 fn bad_case_fields_are_refused_naming_file_field_and_value() {

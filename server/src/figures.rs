@@ -19,12 +19,13 @@ use cryofit_calib::draws::space_draws;
 use cryofit_calib::inference::InferenceSummary;
 use cryofit_calib::model::{SolverModel, probes_dataset};
 use cryofit_calib::pipeline::StageReport;
+use cryofit_calib::problem::Fixed;
 use cryofit_plots as plots;
 use cryofit_plots::{Figure, Plot};
 use cryofit_solver::boiling::{BoilingConditions, boiling_curve};
 use cryofit_solver::case::Case;
 use cryofit_solver::cryo::CorrelationSet;
-use cryofit_solver::params::{self, ParameterSet};
+use cryofit_solver::params;
 
 use crate::fluids::FluidLoader;
 
@@ -197,20 +198,19 @@ impl<'a> Context<'a> {
 
     fn experiments(&self, fluids: &FluidLoader, end_at_data: bool) -> Result<Vec<Built>, String> {
         let spec = self.spec.as_ref().map_err(Clone::clone)?;
-        let mut fixed = ParameterSet::new();
-        for (name, &v) in &spec.fixed {
-            fixed.set(name, v).map_err(|e| format!("fixed.{name}: {e}"))?;
-        }
+        let fixed = Fixed::new(&spec.fixed).map_err(|e| e.to_string())?;
         self.d
             .experiments
             .iter()
             .map(|e| {
                 let case_label = format!("experiment {} case", e.id);
                 let case = Case::from_toml(&e.case, &case_label).map_err(|x| x.to_string())?;
+                let case =
+                    fixed.apply(case, &e.name).map_err(|(name, x)| format!("{case_label}: fixed.{name}: {x}"))?;
                 let data =
                     Dataset::from_csv(&e.data, &format!("experiment {} data", e.id)).map_err(|x| x.to_string())?;
                 let (table, _) = fluids(&case.fluid.name).map_err(|m| format!("{case_label}: {m}"))?;
-                let mut model = SolverModel::new(case.clone(), table, &fixed)
+                let mut model = SolverModel::new(case.clone(), table, fixed.params())
                     .map_err(|m| format!("{case_label}: {m}"))?
                     .with_experiment(&e.name)
                     .with_wall_limit(Some(spec.max_evaluation_s));

@@ -6,8 +6,7 @@ use cryofit_api as api;
 use cryofit_calib::config::{CalibrationSpec, DEFAULT_MAX_EVALUATION_S, ExperimentRef};
 use cryofit_calib::model::SolverModel;
 use cryofit_calib::pipeline::Pipeline;
-use cryofit_calib::problem::{Problem, default_start, experiment_from_texts};
-use cryofit_solver::params::ParameterSet;
+use cryofit_calib::problem::{BuildError, Fixed, Problem, default_start, experiment_from_texts};
 
 use crate::fluids::FluidLoader;
 use crate::invalid::Invalid;
@@ -23,13 +22,12 @@ pub fn experiment(req: &api::CreateExperiment, fluids: &FluidLoader, limits: &Li
     let fluid = cryofit_solver::fluids::canonical_name(&case.fluid.name)
         .ok_or_else(|| Invalid::at("case", format!("case: fluid.name `{}` is not a known fluid", case.fluid.name)))?;
     let loader = |n: &str| fluids(n).map(|(t, _)| t);
-    let built =
-        experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &ParameterSet::new(), None)
-            .map_err(|m| {
-                let m = m.to_string();
-                let field = if m.starts_with("data") { "data" } else { "case" };
-                Invalid::at(field, m)
-            })?;
+    let built = experiment_from_texts(&req.name, &req.case, "case", &req.data, "data", loader, &Fixed::default(), None)
+        .map_err(|m| {
+            let m = m.to_string();
+            let field = if m.starts_with("data") { "data" } else { "case" };
+            Invalid::at(field, m)
+        })?;
     if let Some(model) = built.model.as_any().downcast_ref::<SolverModel>() {
         limits::check_outputs(model, "case", "case", limits)?;
     }
@@ -100,10 +98,7 @@ pub fn calibration(
     // stages ask for, and the limits name the flag that sets them
     limits::check_calibration(&spec, spec.dimension(), limits)?;
     spec.validate().map_err(|e| Invalid::from_message(e.to_string()))?;
-    let mut fixed = ParameterSet::new();
-    for (name, &v) in &spec.fixed {
-        fixed.set(name, v).map_err(|e| Invalid::at(format!("fixed.{name}"), e.to_string()))?;
-    }
+    let fixed = Fixed::new(&spec.fixed).map_err(|e| Invalid::at(format!("fixed.{}", e.name), e.error.to_string()))?;
     let mut built = Vec::new();
     let mut hashes = BTreeMap::new();
     for (k, e) in experiments.iter().enumerate() {
@@ -127,7 +122,11 @@ pub fn calibration(
             &fixed,
             Some(spec.max_evaluation_s),
         )
-        .map_err(|m| Invalid::at(field.clone(), m.to_string()))?;
+        .map_err(|m| match &m {
+            // a fixed value the stored case refuses is the request's `fixed` entry's fault
+            BuildError::FixedCaseField { name, .. } => Invalid::at(format!("fixed.{name}"), m.to_string()),
+            _ => Invalid::at(field.clone(), m.to_string()),
+        })?;
         if let Some(model) = exp.model.as_any().downcast_ref::<SolverModel>() {
             limits::check_outputs(model, &case_label, &field, limits)?;
             spec.check_case_fields(&e.name, model.case(), &case_label)
@@ -220,6 +219,24 @@ mod tests {
         assert!(e.message.contains("did you mean `inlet.loss_coefficient`?"), "{}", e.message);
         let e = check(json!([{"name": "case.inlet.loss_coefficient"}])).unwrap_err();
         assert!(e.message.contains("give both `lower` and `upper`"), "{}", e.message);
+    }
+
+    /// Fixed case fields apply to the stored cases (a shared one to every experiment's, an
+    /// `@<experiment>` one to its own) and are checked there; a value a case refuses names the
+    /// `fixed` entry.
+    #[test]
+    fn fixed_case_fields_are_checked_against_the_stored_cases() {
+        let rows = [stored(1, "a"), stored(2, "b")];
+        let with_fixed = |fixed: serde_json::Value| {
+            let mut req = request(json!([{"name": "Gwsc"}]));
+            req.fixed = serde_json::from_value(fixed).expect("fixed");
+            super::calibration(&req, &rows, &crate::fluids::embedded_fluids(), &api::Limits::default())
+        };
+        with_fixed(json!({"case.pipe.cells": 7, "case.inlet.loss_coefficient@b": 6.0})).expect("valid");
+        let e = with_fixed(json!({"case.pipe.cells": 0})).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("fixed.case.pipe.cells"), "{}", e.message);
+        let e = with_fixed(json!({"case.inlet.loss_coefficient@c": 6.0})).unwrap_err();
+        assert!(e.message.contains("`c` after `@` is not an experiment"), "{}", e.message);
     }
 
     #[test]

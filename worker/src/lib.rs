@@ -23,9 +23,8 @@ use std::time::{Duration, Instant};
 
 use cryofit_api as api;
 use cryofit_calib::cost::{Weight, Weights};
-use cryofit_calib::problem::{Experiment, evaluate_and_fit, experiment_from_texts};
+use cryofit_calib::problem::{Experiment, Fixed, evaluate_and_fit, experiment_from_texts};
 use cryofit_solver::fluids::FluidTable;
-use cryofit_solver::params::ParameterSet;
 
 pub use client::{Client, ClientError};
 
@@ -719,10 +718,7 @@ async fn download(client: &Client, id: i64) -> Result<api::Experiment, String> {
 }
 
 fn build(e: &api::Experiment, ctx: &api::JobContext, fluids: &FluidLoader) -> Result<Arc<Prepared>, String> {
-    let mut fixed = ParameterSet::new();
-    for (name, &v) in &ctx.fixed {
-        fixed.set(name, v).map_err(|err| format!("fixed.{name}: {err}"))?;
-    }
+    let fixed = Fixed::new(&ctx.fixed).map_err(|e| e.to_string())?;
     let loader = |n: &str| fluids(n).map(|(t, _)| t);
     let experiment = experiment_from_texts(
         &e.name,
@@ -774,9 +770,8 @@ mod tests {
             .expect("tiny data");
         let loader =
             |n: &str| cryofit_solver::fluids::embedded(n).map(|t| Arc::new(t.clone())).map_err(|e| e.to_string());
-        let experiment =
-            experiment_from_texts("tiny", &text, "case", &data, "data", loader, &ParameterSet::new(), None)
-                .expect("experiment");
+        let experiment = experiment_from_texts("tiny", &text, "case", &data, "data", loader, &Fixed::default(), None)
+            .expect("experiment");
         Arc::new(Prepared { experiment, weights: Weights(BTreeMap::new()), bytes })
     }
 

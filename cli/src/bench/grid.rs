@@ -13,17 +13,20 @@
 //! chilldown error and the wall-temperature RMS (the quadratic mean of the stations' RMS), so that a calibrated point's
 //! fit can be read on the grid it was fitted on and on finer ones; `--calibration` takes the cases,
 //! their data and their experiment names (for per-experiment values of `--params`) from a
-//! calibration file.
+//! calibration file, with its `[fixed]` values (its case fields too, all but `pipe.cells`, which
+//! `--cells` sets).
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
+use cryofit_calib::apparatus;
 use cryofit_calib::config::CalibrationSpec;
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
 use cryofit_calib::model::probes_dataset;
+use cryofit_calib::problem::Fixed;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver;
 use cryofit_solver::fluids::FluidTable;
@@ -234,9 +237,21 @@ fn prepare(args: &GridArgs, item: &Item, cells: &[usize]) -> Result<Prepared> {
     let text = std::fs::read_to_string(file).with_context(|| format!("cannot read {path}"))?;
     let case = Case::from_toml(&text, &path)?;
     let experiment = item.experiment.clone();
+    // the calibration's fixed case fields over the case file's, but not its grid, which `--cells`
+    // sets; `--params` and `--set` over both
+    let fixed_fields: BTreeMap<String, f64> = item
+        .fixed
+        .iter()
+        .filter(|(name, _)| apparatus::case_name(name).is_some_and(|c| format!("case.{}", c.path) != CELLS_FIELD))
+        .map(|(name, &value)| (name.clone(), value))
+        .collect();
+    let case = Fixed::new(&fixed_fields)
+        .map_err(|e| anyhow!("{e}"))?
+        .apply(case, &experiment)
+        .map_err(|(name, e)| anyhow!("{path}: [fixed] {name} of the calibration: {e}"))?;
     let (applied, mut params, sources) = case_parameters(&case, &path, &experiment, args.params.as_deref(), &args.set)?;
     for (name, &value) in &item.fixed {
-        if !sources.iter().any(|s| s.values.contains_key(name)) {
+        if !apparatus::is_case_name(name) && !sources.iter().any(|s| s.values.contains_key(name)) {
             params.set(name, value).map_err(|e| anyhow!("[fixed] {name} of the calibration: {e}"))?;
         }
     }
