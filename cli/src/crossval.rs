@@ -144,6 +144,17 @@ fn fold_spec(spec: &CalibrationSpec, left: usize, joint: Option<&Joint>, base: &
     if parameters.is_empty() {
         bail!("without experiment `{left_name}` no free parameter is left to refit");
     }
+    // Decision: a per-experiment fixed case field of the left-out experiment is refused rather
+    // than dropped: the refit has no such experiment to hold it, and the left-out prediction reads
+    // the refit's outputs, so the value would be lost without a word; in its case file it holds.
+    if let Some(name) =
+        spec.fixed.keys().find(|n| apparatus::case_name(n).and_then(|c| c.experiment) == Some(left_name.as_str()))
+    {
+        bail!(
+            "fixed.{name}: cross-validation predicts experiment `{left_name}` from refits without it, which cannot \
+             hold its own fixed case fields; set the value in its case file instead"
+        );
+    }
     // the joint's values of parameters it did not refit (screened out) stay as they were: fixed
     let mut fixed = spec.fixed.clone();
     if let Some(j) = joint {
@@ -584,6 +595,24 @@ fn print_table(results: &[FoldResult]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Shared fixed case fields reach every refit; a left-out experiment's own is refused, naming it.
+    #[test]
+    fn fixed_case_fields_reach_the_refits_or_are_refused_for_the_left_out() {
+        let text = "name = \"cv\"\n[[experiments]]\ncase = \"a.toml\"\ndata = \"a.csv\"\n[[experiments]]\n\
+                    case = \"b.toml\"\ndata = \"b.csv\"\n[[parameters]]\nname = \"Gwsc\"\n[fixed]\n\
+                    \"case.pipe.cells\" = 60\n\"case.inlet.loss_coefficient@b\" = 7.0\n[[stages]]\n\
+                    algorithm = \"cmaes\"\nbudget = 10\n[[crossval.stages]]\nalgorithm = \"cmaes\"\nbudget = 6\n";
+        let spec = CalibrationSpec::from_toml(text, "cv.toml").unwrap();
+        let base = Path::new("/runs");
+        let fold = fold_spec(&spec, 0, None, base).unwrap();
+        assert_eq!(fold.fixed.get("case.pipe.cells"), Some(&60.0));
+        assert_eq!(fold.fixed.get("case.inlet.loss_coefficient@b"), Some(&7.0));
+        fold.validate().unwrap();
+        let e = fold_spec(&spec, 1, None, base).unwrap_err().to_string();
+        assert!(e.starts_with("fixed.case.inlet.loss_coefficient@b: "), "{e}");
+        assert!(e.contains("set the value in its case file"), "{e}");
+    }
 
     #[test]
     fn copies_are_read_as_their_entry_and_experiment() {
