@@ -54,8 +54,9 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "N", default_value_t = 0, allow_negative_numbers = true)]
     pub(crate) seed: u64,
     /// Measured data (time_s,station,x_m,quantity,value) to compare the run with: prints the RMS
-    /// per station and quantity and the chilldown times of model and data, and adds them to
-    /// summary.json as `fit`.
+    /// per station and quantity (and what is left of it once the model's clock best aligns with
+    /// the data's: the curve's shape apart from its timing) and the chilldown times of model and
+    /// data, and adds them to summary.json as `fit`.
     #[arg(long, value_name = "DATA.csv")]
     pub(crate) data: Option<PathBuf>,
     /// Also write steps.csv: every attempt at a step, accepted or rejected, with what limited or
@@ -166,6 +167,9 @@ pub(crate) fn read_case_data(path: &Path, case: &Case, case_path: &str) -> Resul
 struct Comparison {
     file: String,
     fit: cryofit_calib::cost::Fit,
+    /// Per series, the clock factor that best aligns the model with the data and the RMS left
+    /// there ([`cryofit_calib::cost::best_time_scale`]): how much of the misfit is timing.
+    aligned: BTreeMap<(String, String), (f64, f64)>,
     chilldown: BTreeMap<String, (Option<f64>, Option<f64>)>,
     /// Heat the wall released by each time, J, data and model read alike from the stations' wall
     /// temperatures (`cryofit_calib::heat`); empty without wall temperatures in the data.
@@ -192,16 +196,25 @@ fn compare(case: &Case, output: &Output, file: &str, data: &Dataset) -> Result<C
     let model = probes_dataset(&output.probes);
     let fit = cryofit_calib::cost::fit(&model, data, &Weights::default())
         .map_err(|e| anyhow!("--data {file}: {e} (the case's [[stations]] and time.end_s must cover the data)"))?;
+    let aligned = data
+        .series
+        .iter()
+        .filter_map(|(key, d)| Some((key.clone(), cryofit_calib::cost::best_time_scale(model.series.get(key)?, d)?)))
+        .collect();
     let chilldown = chilldown_pairs(data, output);
     let wall = cryofit_calib::heat::Wall::of_case(case);
     let heat = cryofit_calib::heat::compare(data, &model, &wall, &heat_times(data, &chilldown));
-    Ok(Comparison { file: file.to_string(), fit, chilldown, heat })
+    Ok(Comparison { file: file.to_string(), fit, aligned, chilldown, heat })
 }
 
 fn print_comparison(c: &Comparison) {
     println!("  against {}:", c.file);
-    for ((station, quantity), s) in &c.fit.series {
-        println!("    {station} {quantity}: RMS {} over {} readings", fmt_sig(s.rms), s.points);
+    for (key, s) in &c.fit.series {
+        let (station, quantity) = key;
+        let aligned = c.aligned.get(key).map_or_else(String::new, |(r, rms)| {
+            format!("; {} with its timing removed (the model's times ×{r:.3} the data's)", fmt_sig(*rms))
+        });
+        println!("    {station} {quantity}: RMS {} over {} readings{aligned}", fmt_sig(s.rms), s.points);
     }
     for (station, (d, m)) in &c.chilldown {
         match (d, m) {
@@ -332,8 +345,15 @@ fn summary_json(
             .fit
             .series
             .iter()
-            .map(|((station, quantity), s)| {
-                serde_json::json!({"station": station, "quantity": quantity, "rms": s.rms, "points": s.points})
+            .map(|(key, s)| {
+                let (station, quantity) = key;
+                let mut v =
+                    serde_json::json!({"station": station, "quantity": quantity, "rms": s.rms, "points": s.points});
+                if let Some((r, rms)) = c.aligned.get(key) {
+                    v["aligned_rms"] = (*rms).into();
+                    v["time_scale"] = (*r).into();
+                }
+                v
             })
             .collect();
         let chilldown: BTreeMap<&String, serde_json::Value> =

@@ -384,6 +384,35 @@ fn data_compares_the_run_with_measurements() {
     assert!(heat.iter().all(|h| h["data_j"].as_f64().is_some() && h["data_j"] == h["model_j"]), "{heat:?}");
     assert!(stdout.contains("heat released by the wall"), "{stdout}");
 
+    // the run's own probes on a clock 10 % slower: the misfit is all timing, which the aligned
+    // RMS removes (the model's times ×1/1.1 the data's, to the search's resolution)
+    let probes = read(&own);
+    let end = probes.lines().skip(1).filter_map(|l| l.split(',').next()?.parse::<f64>().ok()).fold(0.0, f64::max);
+    let mut slow = String::from("time_s,station,x_m,quantity,value\n");
+    for line in probes.lines().skip(1) {
+        let (t, rest) = line.split_once(',').unwrap();
+        let t: f64 = t.parse().unwrap();
+        if 1.1 * t <= end {
+            slow.push_str(&format!("{},{rest}\n", 1.1 * t));
+        }
+    }
+    let slow = tmp.write("slow.csv", &slow);
+    let (dir, out) = run("slow", &["--data", slow.as_str()]);
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("with its timing removed (the model's times ×0.909 the data's)"), "{stdout}");
+    let mut moved = 0;
+    for s in summary(&dir)["fit"]["series"].as_array().unwrap() {
+        let (rms, aligned, r) =
+            (s["rms"].as_f64().unwrap(), s["aligned_rms"].as_f64().unwrap(), s["time_scale"].as_f64());
+        assert!(aligned <= rms, "{s}");
+        if rms > 0.0 {
+            moved += 1;
+            assert!(aligned < 0.2 * rms, "{s}");
+            assert!((r.unwrap() - 1.0 / 1.1).abs() < 0.005, "{s}");
+        }
+    }
+    assert!(moved > 0, "no series changed with the clock");
+
     let noisy_data = noisy.join("probes.csv");
     let (dir, _) = run("against-noisy", &["--data", noisy_data.to_str().unwrap()]);
     let fit = &summary(&dir)["fit"];
