@@ -166,6 +166,22 @@ fn joint(dir: &Path) -> PathBuf {
     file
 }
 
+/// Runs experiment `exp`'s case (`dir/<exp>.toml`) with the calibration's `best.toml` (in
+/// `out_dir`) into `dir/again-<exp>`, checks that it reproduces the calibration's best fit of that
+/// experiment (`fit-<exp>.csv`), and returns the run's output and folder.
+fn reproduce_fit(dir: &Path, out_dir: &Path, exp: &str) -> (std::process::Output, PathBuf) {
+    let again = dir.join(format!("again-{exp}"));
+    let case = dir.join(format!("{exp}.toml"));
+    let params = out_dir.join("best.toml");
+    let args =
+        ["simulate", case.to_str().unwrap(), "--params", params.to_str().unwrap(), "--out", again.to_str().unwrap()];
+    let out = cryofit(&args);
+    ok(&out);
+    let fit = std::fs::read_to_string(out_dir.join(format!("fit-{exp}.csv"))).unwrap();
+    assert_eq!(fit, std::fs::read_to_string(again.join("probes.csv")).unwrap(), "{exp}");
+    (out, again)
+}
+
 /// A CI-sized calibration with one shared and one per-experiment case field: every output names
 /// them (`case.<path>`, `case.<path>@<experiment>`), `best.toml` reproduces each experiment's best
 /// fit, and `cryofit predict` applies the shared value and the case's own experiment's copy.
@@ -202,24 +218,11 @@ fn a_calibration_frees_shared_and_per_experiment_case_fields() {
     }
     // best.toml on each experiment's case reproduces its best fit: the case file's stem names the
     // experiment, so its own copy applies and the other's is skipped (and said so)
-    let params = out_dir.join("best.toml");
     for exp in ["tiny", "b"] {
-        let again = dir.join(format!("again-{exp}"));
-        let case = dir.join(format!("{exp}.toml"));
-        let out = cryofit(&[
-            "simulate",
-            case.to_str().unwrap(),
-            "--params",
-            params.to_str().unwrap(),
-            "--out",
-            again.to_str().unwrap(),
-        ]);
-        ok(&out);
+        let (out, again) = reproduce_fit(&dir, &out_dir, exp);
         let other = if exp == "tiny" { "b" } else { "tiny" };
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(stderr.contains(&format!("skipped case.inlet.loss_coefficient@{other}")), "{stderr}");
-        let fit = std::fs::read_to_string(out_dir.join(format!("fit-{exp}.csv"))).unwrap();
-        assert_eq!(fit, std::fs::read_to_string(again.join("probes.csv")).unwrap(), "{exp}");
         let summary = read_json(&again.join("summary.json"));
         let k = result["best_parameters"][format!("case.inlet.loss_coefficient@{exp}")].as_f64().unwrap();
         assert_eq!(summary["case_fields"]["inlet.loss_coefficient"].as_f64(), Some(k));
@@ -273,21 +276,8 @@ fn fixed_case_fields_set_the_grid_and_apparatus_of_a_calibration() {
     for line in ["\n\"case.pipe.cells\" = 4.0\n", "\n\"case.inlet.loss_coefficient@b\" = 7.5\n", "\nGwsc = "] {
         assert!(best_toml.contains(line), "{line} in {best_toml}");
     }
-    let params = out_dir.join("best.toml");
     for (exp, k) in [("tiny", None), ("b", Some(7.5))] {
-        let again = dir.join(format!("again-{exp}"));
-        let case = dir.join(format!("{exp}.toml"));
-        let args = [
-            "simulate",
-            case.to_str().unwrap(),
-            "--params",
-            params.to_str().unwrap(),
-            "--out",
-            again.to_str().unwrap(),
-        ];
-        ok(&cryofit(&args));
-        let fit = std::fs::read_to_string(out_dir.join(format!("fit-{exp}.csv"))).unwrap();
-        assert_eq!(fit, std::fs::read_to_string(again.join("probes.csv")).unwrap(), "{exp}");
+        let (_, again) = reproduce_fit(&dir, &out_dir, exp);
         let summary = read_json(&again.join("summary.json"));
         assert_eq!(summary["case_fields"]["pipe.cells"].as_f64(), Some(4.0), "{exp}");
         assert_eq!(summary["case_fields"]["inlet.loss_coefficient"].as_f64(), k, "{exp}");
