@@ -743,28 +743,20 @@ impl CalibrationSpec {
         spec
     }
 
-    /// Checks every case field free in experiment `experiment` (its name) against its `case`
-    /// (`case_label` names the file): the field exists, holds a number, and the case accepts both
-    /// bounds. Errors name the parameter, the experiment, the case, the bound and the field.
+    /// Checks every case field fixed or free in experiment `experiment` (its name) against its
+    /// `case` (`case_label` names the file): the field exists, holds a number, and the case accepts
+    /// the fixed value or both bounds. Errors name the parameter, the experiment, the case, the bound and the field.
     pub fn check_case_fields(&self, experiment: &str, case: &Case, case_label: &str) -> Result<(), SpecError> {
-        // the fixed case fields that apply here, one at a time so that an error names its own
-        for (path, value) in apparatus::sort(&self.fixed, Some(experiment)).case {
-            if let Err(error) = case.with_fields(&[(path.as_str(), value)]) {
-                let specific = format!("{}{path}{}{experiment}", apparatus::CASE_PREFIX, apparatus::EXPERIMENT_MARK);
-                let name = if self.fixed.contains_key(&specific) {
-                    specific
-                } else {
-                    format!("{}{path}", apparatus::CASE_PREFIX)
-                };
-                return Err(SpecError::CaseField {
-                    field: format!("fixed.{name}"),
-                    name,
-                    experiment: experiment.to_string(),
-                    case_label: case_label.to_string(),
-                    bound: None,
-                    error: Box::new(error),
-                });
-            }
+        // the fixed case fields that apply here
+        if let Err((name, error)) = apparatus::set_fields(&self.fixed, case, experiment) {
+            return Err(SpecError::CaseField {
+                field: format!("fixed.{name}"),
+                name,
+                experiment: experiment.to_string(),
+                case_label: case_label.to_string(),
+                bound: None,
+                error: Box::new(error),
+            });
         }
         for (k, p) in self.parameters.iter().enumerate() {
             let Some(name) = apparatus::case_name(&p.name) else { continue };

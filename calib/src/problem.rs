@@ -280,18 +280,10 @@ impl Fixed {
         case: cryofit_solver::case::Case,
         experiment: &str,
     ) -> Result<cryofit_solver::case::Case, (String, cryofit_solver::case::FieldError)> {
-        let sorted = crate::apparatus::sort(&self.case_fields, Some(experiment));
-        let mut case = case;
-        for (path, value) in sorted.case {
-            let specific = crate::apparatus::copy_name(&format!("{}{path}", crate::apparatus::CASE_PREFIX), experiment);
-            let name = if self.case_fields.contains_key(&specific) {
-                specific
-            } else {
-                format!("{}{path}", crate::apparatus::CASE_PREFIX)
-            };
-            case = case.with_fields(&[(path.as_str(), value)]).map_err(|error| (name, error))?;
+        if self.case_fields.is_empty() {
+            return Ok(case);
         }
-        Ok(case)
+        crate::apparatus::set_fields(&self.case_fields, &case, experiment)
     }
 }
 
