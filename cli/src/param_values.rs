@@ -255,28 +255,38 @@ mod tests {
     }
 
     /// Every parameter file beside the NBS runs (`examples/nbs/calibrated*.toml`, the `--params`
-    /// files of the validation) reads as `--params` reads it: registry names only, each value
-    /// within its registry bounds (a file copied from a calibration's `best.toml` must still be one
-    /// `cryofit simulate --params` accepts as the registry stands).
+    /// files of the validation) reads as `--params` reads it: registry values within their
+    /// registry bounds, and case fields (the grid a fit was made on) that every NBS case accepts
+    /// (a file copied from a calibration's `best.toml` must still be one `cryofit simulate
+    /// --params` accepts as the registry and the cases stand).
     #[test]
     fn every_example_parameter_file_reads_as_params() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/nbs");
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".toml"))
+            .collect();
+        let cases: Vec<(String, Case)> = names
+            .iter()
+            .filter(|n| !n.starts_with("calibrate"))
+            .map(|n| (n.clone(), Case::from_toml(&std::fs::read_to_string(dir.join(n)).unwrap(), n).unwrap()))
+            .collect();
+        assert_eq!(cases.len(), 6, "the six NBS cases");
         let mut seen = Vec::new();
-        for entry in std::fs::read_dir(&dir).unwrap() {
-            let path = entry.unwrap().path();
-            let name = path.file_name().unwrap().to_string_lossy().into_owned();
-            if !(name.starts_with("calibrated") && name.ends_with(".toml")) {
-                continue;
-            }
-            let values = read_params_file(&path).unwrap_or_else(|e| panic!("{e:#}"));
+        for name in names.iter().filter(|n| n.starts_with("calibrated")) {
+            let values = read_params_file(&dir.join(name)).unwrap_or_else(|e| panic!("{e:#}"));
             assert!(!values.values.is_empty(), "{name}: no parameters");
-            assert!(values.values.keys().all(|k| !apparatus::is_case_name(k)), "{name}: case fields");
-            seen.push(name);
+            for (case_name, case) in &cases {
+                let applied = apply_case_fields(case, case_name, "any", &[&values]).unwrap_or_else(|e| panic!("{e:#}"));
+                assert!(applied.skipped.is_empty(), "{name}: per-experiment values {:?}", applied.skipped);
+            }
+            seen.push(name.clone());
         }
         seen.sort();
         assert_eq!(
             seen,
-            ["calibrated-regime.toml", "calibrated-six.toml", "calibrated.toml"],
+            ["calibrated-120.toml", "calibrated-regime.toml", "calibrated-six.toml", "calibrated.toml"],
             "parameter files beside the runs"
         );
     }
