@@ -81,20 +81,13 @@ impl Sorted {
 /// `case` with the case fields among `values` that apply to experiment `experiment` set one by
 /// one (a per-experiment value over a shared one; registry names are passed over), or the name of
 /// the first value the case refuses (as given: `case.<path>` or `case.<path>@<experiment>`) and why.
-pub fn set_fields<'a>(
-    values: impl IntoIterator<Item = (&'a String, &'a f64)> + Clone,
-    case: &Case,
-    experiment: &str,
-) -> Result<Case, (String, FieldError)> {
-    let sorted = sort(values.clone(), Some(experiment));
+pub fn set_fields(values: &BTreeMap<String, f64>, case: &Case, experiment: &str) -> Result<Case, (String, FieldError)> {
     let mut case = case.clone();
-    for (path, value) in sorted.case {
+    for (path, value) in sort(values, Some(experiment)).case {
         let shared = format!("{CASE_PREFIX}{path}");
         let specific = copy_name(&shared, experiment);
-        let given = values.clone().into_iter().any(|(n, _)| *n == specific);
-        case = case
-            .with_fields(&[(path.as_str(), value)])
-            .map_err(|error| (if given { specific } else { shared }, error))?;
+        let name = if values.contains_key(&specific) { specific } else { shared };
+        case = case.with_fields(&[(path.as_str(), value)]).map_err(|error| (name, error))?;
     }
     Ok(case)
 }

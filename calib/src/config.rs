@@ -680,7 +680,8 @@ impl CalibrationSpec {
     fn check_fixed_case_field(&self, field: &str, name: &str, value: f64) -> Result<(), SpecError> {
         let refuse = |need: String| SpecError::CaseParameter { field: field.into(), value: name.into(), need };
         let Some(case) = apparatus::case_name(name) else { return Ok(()) };
-        check_case_name(field, &format!("{}{}", apparatus::CASE_PREFIX, case.path))?;
+        let shared = format!("{}{}", apparatus::CASE_PREFIX, case.path);
+        check_case_name(field, &shared)?;
         if let Some(experiment) = case.experiment {
             let labels: Vec<String> = self.experiments.iter().enumerate().map(|(k, e)| e.label(k)).collect();
             if !labels.iter().any(|l| l == experiment) {
@@ -694,7 +695,6 @@ impl CalibrationSpec {
         if !value.is_finite() {
             return Err(refuse(format!("the value {value} is not a finite number")));
         }
-        let shared = format!("{}{}", apparatus::CASE_PREFIX, case.path);
         if let Some(k) = self.parameters.iter().position(|p| p.name == shared) {
             return Err(refuse(format!("`{shared}` is also a free parameter (parameters[{k}]); list it in one place")));
         }

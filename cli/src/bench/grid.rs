@@ -26,7 +26,6 @@ use cryofit_calib::config::CalibrationSpec;
 use cryofit_calib::cost::Weights;
 use cryofit_calib::data::Dataset;
 use cryofit_calib::model::probes_dataset;
-use cryofit_calib::problem::Fixed;
 use cryofit_solver::case::Case;
 use cryofit_solver::driver;
 use cryofit_solver::fluids::FluidTable;
@@ -245,9 +244,7 @@ fn prepare(args: &GridArgs, item: &Item, cells: &[usize]) -> Result<Prepared> {
         .filter(|(name, _)| apparatus::case_name(name).is_some_and(|c| format!("case.{}", c.path) != CELLS_FIELD))
         .map(|(name, &value)| (name.clone(), value))
         .collect();
-    let case = Fixed::new(&fixed_fields)
-        .map_err(|e| anyhow!("{e}"))?
-        .apply(case, &experiment)
+    let case = apparatus::set_fields(&fixed_fields, &case, &experiment)
         .map_err(|(name, e)| anyhow!("{path}: [fixed] {name} of the calibration: {e}"))?;
     let (applied, mut params, sources) = case_parameters(&case, &path, &experiment, args.params.as_deref(), &args.set)?;
     for (name, &value) in &item.fixed {
