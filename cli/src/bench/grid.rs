@@ -6,8 +6,8 @@
 //! `cryofit simulate` takes it, `--params` and `--set` included), all runs on all cores, the
 //! finest first. The report gives per run the steps, the wall time, the energy balance error and
 //! every station's chilldown time, and per case how far each station's chilldown moves between the
-//! two finest grids and how far the coarsest grid lies from the finest, held against the target
-//! of the issue "operating envelope" (the last station's chilldown changes by at most 2 % from
+//! two finest grids and how far the coarsest grid lies from the finest, held against the
+//! operating envelope's grid target (the last station's chilldown changes by at most 2 % from
 //! 240 to 480 cells; here: between the two finest grids given). With `--data` (one file per case,
 //! in the order of the cases) each run is also compared with its measurements: every station's
 //! chilldown error and the wall-temperature RMS (the quadratic mean of the stations' RMS), so that a calibrated point's

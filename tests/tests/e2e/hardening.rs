@@ -1,4 +1,4 @@
-//! What an attacker or a careless user tried on the coordinator and the workers (issue 18): each
+//! What an attacker or a careless user tried on the coordinator and the workers: each
 //! test makes the attack and checks that the coordinator refuses it with a 4xx naming the field,
 //! keeps one process per database and keeps answering, and that workers retry, drain and share.
 
