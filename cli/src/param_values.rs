@@ -286,7 +286,13 @@ mod tests {
         seen.sort();
         assert_eq!(
             seen,
-            ["calibrated-120.toml", "calibrated-regime.toml", "calibrated-six.toml", "calibrated.toml"],
+            [
+                "calibrated-120.toml",
+                "calibrated-fb.toml",
+                "calibrated-regime.toml",
+                "calibrated-six.toml",
+                "calibrated.toml"
+            ],
             "parameter files beside the runs"
         );
     }
