@@ -9,9 +9,10 @@
 //! spread at a calibrated point, `--set case.time.max_dt_s=0.002` at shorter steps). The report gives
 //! every run's chilldown time at the station and its steps, the range, mean and standard deviation
 //! of the chilldowns and the largest move from the unperturbed run, held against the target of 1 s
-//! (the operating envelope's smoothness target: ten one-ulp perturbations of one closure value move the subcooled
-//! station-4 chilldown by at most 1 s). A perturbation that leaves the registry bounds, or a run
-//! that fails or never reaches the chilldown, is reported as such and counts as not meeting it.
+//! (the operating envelope's smoothness target: ten one-ulp perturbations of one closure value
+//! move the subcooled station-4 chilldown by at most 1 s). A perturbation that leaves the registry
+//! bounds, or a run that fails or never reaches the chilldown, is reported as such and counts as
+//! not meeting it.
 
 use std::path::PathBuf;
 use std::time::Instant;
