@@ -106,8 +106,8 @@ pub use parameters::{
     UnknownCorrelationSet,
 };
 pub use regime::{
-    Regime, RegimeBasis, dryout_mass_flux, flow_regime, flow_regime_cached, kutateladze_q_dnb,
-    stratification_boundaries, wetted_fraction,
+    Regime, RegimeBasis, dryout_mass_flux, flow_regime, flow_regime_cached, intermittent_annular_quality,
+    kutateladze_q_dnb, stratification_boundaries, wetted_fraction,
 };
 pub use state::{
     Local, Vapour, equilibrium_quality, mass_fluxes, regime_quality, static_quality, stratified_half_angle,

@@ -74,6 +74,21 @@ pub fn dryout_mass_flux(s: &Local, p: &CryoParams, chi: f64, q_wall: f64) -> f64
     ln_dryout_mass_flux(s, p, chi, q_wall).map_or(0.0, f64::exp)
 }
 
+/// 0.34^(1/0.875), the Martinelli parameter of Kattan, Thome and Favrat's intermittent/annular
+/// transition (checked by a test).
+pub(super) const X_TT_IA_POW: f64 = 0.291_438_775_663_021_9;
+
+/// The quality x_IA of the intermittent/annular transition of the Wojtan et al. (2005) map
+/// (Kattan, Thome and Favrat 1998: the Martinelli parameter X_tt = 0.34):
+/// x_IA = [0.34^(1/0.875) (ρ_g/ρ_l)^(−1/1.75) (μ_l/μ_g)^(−1/7) + 1]^(−1), saturated densities,
+/// the phases' viscosities. About 0.33 for nitrogen at 3 atm and 0.5 for para-hydrogen at 5 atm.
+pub fn intermittent_annular_quality(s: &Local) -> f64 {
+    let rho_ratio = s.vap_sat.rho.max(TINY) / s.rho_l_sat.max(TINY);
+    let mu_ratio = s.mu_l.max(TINY) / s.vap_sat.mu.max(TINY);
+    let x = 1.0 / (X_TT_IA_POW * rho_ratio.powf(-1.0 / 1.75) * mu_ratio.powf(-1.0 / 7.0) + 1.0);
+    if x.is_finite() { x } else { 0.0 }
+}
+
 /// ln 4.25 (checked by a test).
 pub(super) const LN_4_25: f64 = 1.446_918_982_936_325_4;
 /// ln 10⁻³, the logarithm of [`Q_TILDE_MIN`] (checked by a test).
@@ -114,6 +129,8 @@ struct DryoutBasis {
     density_root: f64,
     /// 0.7 ln q̃.
     tail: f64,
+    /// The intermittent/annular transition quality x_IA ([`intermittent_annular_quality`]).
+    x_ia: f64,
 }
 
 impl DryoutBasis {
@@ -128,6 +145,7 @@ impl DryoutBasis {
                 + 0.37 * (boiling_gravity(s) * d * rho_g * sat_delta_rho(s)).ln(),
             density_root: fourth_root(s.rho_l_sat.max(0.0) / rho_g),
             tail: 0.7 * ln_q_t,
+            x_ia: intermittent_annular_quality(s),
         }
     }
 
@@ -152,10 +170,19 @@ pub struct RegimeBasis {
 ///
 /// With G the total mass flux and χ the [`regime_quality`]:
 /// s_strat = S(½ + ln(G/G_strat)/w), s_wavy = S(½ + ln(G/G_wavy)/w),
-/// s_dry = S(½ + ln(G/ṁ_dry)/w) (S the smooth step, w = `regime_width`, ṁ_dry from
-/// [`dryout_mass_flux`]), mist = S(½ + (χ − xmin)/0.05), dry = 1 − (1 − s_dry)(1 − mist);
+/// s_dry = S(½ + ln(G/ṁ_dry)/w) S(½ + (χ − x_IA)/0.05) (S the smooth step, w = `regime_width`,
+/// ṁ_dry from [`dryout_mass_flux`], x_IA from [`intermittent_annular_quality`]),
+/// mist = S(½ + (χ − xmin)/0.05), dry = 1 − (1 − s_dry)(1 − mist);
 /// stratified = (1 − dry)(1 − s_strat), wavy = (1 − dry) s_strat (1 − s_wavy),
 /// annular = (1 − dry) s_strat s_wavy, dryout = dry.
+///
+/// Decision: Wojtan's dryout is the drying of an annular film, and his map has it only in the
+/// annular zone, right of x_IA; below it a flow above the wavy boundary is intermittent however
+/// fast it is. The boundary ṁ_dry alone, extrapolated to low qualities, put liquid at a void
+/// fraction of 0.46 (χ ≈ 0.02) into dryout whenever a surge raised its mass flux, and took it
+/// as drops: at the subcooled NBS inlet a dryout weight of 0.03–0.08 multiplied the liquid's
+/// interface coefficient by 25, the vapour collapsed, the mass flux fell back and the cycle
+/// repeated every 40 ms (BENCHMARKS.md, "The dryout regime's liquid as a stream").
 pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
     flow_regime_cached(s, p, q_wall, &mut RegimeBasis::default())
 }
@@ -177,6 +204,9 @@ pub fn flow_regime_cached(s: &Local, p: &CryoParams, q_wall: f64, basis: &mut Re
         Some(ln_m) => smooth_step(0.5 + (ln_g - ln_m) / w),
         None => 1.0,
     };
+    // dryout is the drying of an annular film: none below the intermittent/annular transition
+    let x_ia = basis.dryout.get_or_insert_with(|| DryoutBasis::new(s, p, q_wall)).x_ia;
+    let dry_hf = dry_hf * smooth_step(0.5 + (chi - x_ia) / QUALITY_WIDTH);
     let dryout = 1.0 - (1.0 - dry_hf) * (1.0 - mist);
     let wet = 1.0 - dryout;
     if wet == 0.0 {

@@ -2,7 +2,7 @@ use std::f64::consts::PI;
 
 use super::convection::RA_NATURAL_TURBULENT;
 use super::particles::bubble_diameter;
-use super::regime::{LN_4_25, LN_Q_TILDE_MIN, Q_TILDE_MIN};
+use super::regime::{LN_4_25, LN_Q_TILDE_MIN, Q_TILDE_MIN, X_TT_IA_POW};
 use super::state::{CBRT_3PI_2, diameter, prandtl};
 use super::*;
 use crate::closures::churchill_darcy;
@@ -241,6 +241,7 @@ fn no_hidden_bound_pins_a_parameter() {
 #[test]
 fn logarithm_constants_are_exact() {
     assert_eq!(LN_4_25, 4.25f64.ln());
+    assert_eq!(X_TT_IA_POW, 0.34f64.powf(1.0 / 0.875));
     assert_eq!(LN_Q_TILDE_MIN, Q_TILDE_MIN.ln());
     let r4: f64 = 5.9 * 5.9 * 5.9 * 5.9;
     assert_eq!(RA_NATURAL_TURBULENT, r4 * r4 * r4);
@@ -727,6 +728,37 @@ fn regimes_where_expected() {
     // liquid-full pipe is fully wetted
     let s = ln2(0.0, 150.0, 0.0, 0.0);
     assert_eq!(wetted_fraction(&s, &flow_regime(&s, &p, 0.0)), 1.0);
+}
+
+#[test]
+fn no_dryout_below_the_intermittent_annular_transition() {
+    let p = defaults();
+    // Kattan, Thome and Favrat's x_IA for saturated nitrogen at 1 atm: 0.23 (X_tt = 0.34)
+    let x_ia = intermittent_annular_quality(&ln2(0.5, 150.0, 0.0, 0.0));
+    let x_tt =
+        |x: f64| ((1.0 - x) / x).powf(0.875) * (4.612f64 / 806.08).powf(0.5) * (1.607e-4f64 / 5.44e-6).powf(0.125);
+    assert!((x_tt(x_ia) - 0.34).abs() < 1e-12, "x_IA {x_ia}");
+    assert!(x_ia > 0.2 && x_ia < 0.25, "{x_ia}");
+    // a surge through a bubbly-slug cell at a film-boiling wall: far above Wojtan's ṁ_dry
+    // extrapolated to χ ≈ 0.03, yet no annular film to dry out
+    let q = 3e4;
+    let s = ln2(0.46, 250.0, 8.0, 15.0);
+    let chi = regime_quality(&s);
+    let (gg, gl) = mass_fluxes(&s);
+    let m_dry = dryout_mass_flux(&s, &p, chi, q);
+    // past the boundary's whole smooth step: the boundary alone gives full dryout
+    assert!(chi < 0.05 && (gg + gl) > m_dry * p.regime_width.exp(), "χ {chi} G {} ṁ_dry {m_dry}", gg + gl);
+    let r = flow_regime(&s, &p, q);
+    assert_eq!(r.dryout, 0.0, "{r:?}");
+    assert!(r.annular > 0.99, "{r:?}");
+    // the same mass flux at a quality above x_IA dries out
+    let s = ln2(0.98, 250.0, 60.0, 10.0);
+    let chi = regime_quality(&s);
+    let (gg, gl) = mass_fluxes(&s);
+    let m_dry = dryout_mass_flux(&s, &p, chi, q);
+    assert!(chi > x_ia + 0.05 && chi < p.x_mist - 0.05, "χ {chi}");
+    assert!((gg + gl) > m_dry * p.regime_width.exp(), "χ {chi} G {} ṁ_dry {m_dry}", gg + gl);
+    assert!(flow_regime(&s, &p, q).dryout > 0.99);
 }
 
 // ---------------------------------------------------------------- robustness
