@@ -6,13 +6,16 @@ use std::f64::consts::PI;
 use super::TINY;
 use super::parameters::CryoParams;
 use super::state::{
-    Local, boiling_gravity, diameter, mass_fluxes, regime_quality, sat_delta_rho, stratified_half_angle, void,
+    Local, boiling_gravity, diameter, mass_fluxes, regime_quality, sat_delta_rho, static_quality, stratified_half_angle,
+    void,
 };
 use crate::closures::smooth_step;
 use crate::fastmath::fourth_root;
 
 /// Width in quality of the smooth mist transition.
 const QUALITY_WIDTH: f64 = 0.05;
+/// Width in quality of the smooth intermittent/annular bound of dryout.
+const IA_WIDTH: f64 = 0.05;
 /// Floor of the normalised wall heat flux q/q_DNB of the dryout boundary.
 pub(super) const Q_TILDE_MIN: f64 = 1e-3;
 /// Lowest stratified boundary mass flux, kg/(m² s) (the polynomials can be driven negative).
@@ -129,8 +132,9 @@ struct DryoutBasis {
     density_root: f64,
     /// 0.7 ln q̃.
     tail: f64,
-    /// The intermittent/annular transition quality x_IA ([`intermittent_annular_quality`]).
-    x_ia: f64,
+    /// The share of the flow past the intermittent/annular transition, S(½ + (x_s − x_IA)/0.05)
+    /// with x_s the static quality and x_IA from [`intermittent_annular_quality`].
+    annular: f64,
 }
 
 impl DryoutBasis {
@@ -145,7 +149,7 @@ impl DryoutBasis {
                 + 0.37 * (boiling_gravity(s) * d * rho_g * sat_delta_rho(s)).ln(),
             density_root: fourth_root(s.rho_l_sat.max(0.0) / rho_g),
             tail: 0.7 * ln_q_t,
-            x_ia: intermittent_annular_quality(s),
+            annular: smooth_step(0.5 + (static_quality(s) - intermittent_annular_quality(s)) / IA_WIDTH),
         }
     }
 
@@ -205,8 +209,8 @@ pub fn flow_regime_cached(s: &Local, p: &CryoParams, q_wall: f64, basis: &mut Re
         None => 1.0,
     };
     // dryout is the drying of an annular film: none below the intermittent/annular transition
-    let x_ia = basis.dryout.get_or_insert_with(|| DryoutBasis::new(s, p, q_wall)).x_ia;
-    let dry_hf = dry_hf * smooth_step(0.5 + (chi - x_ia) / QUALITY_WIDTH);
+    let annular = basis.dryout.get_or_insert_with(|| DryoutBasis::new(s, p, q_wall)).annular;
+    let dry_hf = dry_hf * annular;
     let dryout = 1.0 - (1.0 - dry_hf) * (1.0 - mist);
     let wet = 1.0 - dryout;
     if wet == 0.0 {
