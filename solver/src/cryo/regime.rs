@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 use super::TINY;
 use super::parameters::CryoParams;
 use super::state::{
-    Local, boiling_gravity, diameter, mass_fluxes, regime_quality, sat_delta_rho, static_quality, stratified_half_angle,
-    void,
+    Local, boiling_gravity, diameter, mass_fluxes, regime_quality, sat_delta_rho, static_quality,
+    stratified_half_angle, void,
 };
 use crate::closures::smooth_step;
 use crate::fastmath::fourth_root;
