@@ -26,7 +26,13 @@ fn calibrate(dir: &Path, stages: &str) -> PathBuf {
 /// of the samples, and the report rightly declined to draw a band that excluded it; with 160 (20
 /// iterations, R-hat 6.7) whether it did was the chain's chance (seed 7 of `tiny-calibration.toml`
 /// left the best `Gwsc` at the samples' 95 % quantile on the solver whose end throttles' heat
-/// leaves with the outflow, seeds 1–3 did not); with 320 seeds 7 and 1–3 all draw the band.
+/// leaves with the outflow, seeds 1–3 did not); with 320 seeds 7 and 1–3 all drew the band. With
+/// dryout bounded by the intermittent/annular transition the tiny case's cost is as ragged in
+/// `hg0sc` as before (station 1 on 5 cells over 8 s) and its best point lies elsewhere: with 320
+/// evaluations the best point lies inside the 5–95 % range of 12 posterior runs for seeds 1 and 7,
+/// not for seeds 2–5 (6 runs: seed 1 only). Whether the chain holds its best point is the chain's
+/// chance on this fixture, so the fit figure must carry either the band or the reason it is not
+/// drawn; with seed 7 and 12 runs it carries the band.
 const ALL_STAGES: &str = r#"
 [[stages]]
 algorithm = "sensitivity"
@@ -60,7 +66,7 @@ fn every_figure_of_a_calibration_with_every_kind_of_stage() {
         "--out",
         &report.display().to_string(),
         "--band-draws",
-        "6",
+        "12",
     ]));
     assert!(text.contains("7 figures"), "{text}");
     let index = std::fs::read_to_string(report.join("index.html")).unwrap();
@@ -84,7 +90,11 @@ fn every_figure_of_a_calibration_with_every_kind_of_stage() {
     for station in ["TS1", "TS2", "TS3", "TS4"] {
         assert!(fit.contains(&format!("station {station}")), "{station}");
     }
-    assert!(fit.contains("posterior predictive"), "the band is missing");
+    assert!(
+        fit.contains("posterior predictive")
+            || fit.contains("no posterior-predictive band: the best fit lies inside the 12 posterior runs"),
+        "neither the band nor the reason it is not drawn"
+    );
     let boiling = std::fs::read_to_string(report.join("boiling-curve.svg")).unwrap();
     assert!(boiling.contains("p = 7 atm") && boiling.contains("wall heat flux (W/m²)"));
     // nothing left behind but the files
