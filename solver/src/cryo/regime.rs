@@ -84,7 +84,8 @@ pub(super) const X_TT_IA_POW: f64 = 0.291_438_775_663_021_9;
 /// The quality x_IA of the intermittent/annular transition of the Wojtan et al. (2005) map
 /// (Kattan, Thome and Favrat 1998: the Martinelli parameter X_tt = 0.34):
 /// x_IA = [0.34^(1/0.875) (ρ_g/ρ_l)^(−1/1.75) (μ_l/μ_g)^(−1/7) + 1]^(−1), saturated densities,
-/// the phases' viscosities. About 0.33 for nitrogen at 3 atm and 0.5 for para-hydrogen at 5 atm.
+/// the saturated vapour's viscosity and the liquid's. 0.23 for saturated nitrogen at 1 atm (a
+/// test), 0.42 for para-hydrogen at 2.2 bar (the NBS line's exit after a chilldown).
 pub fn intermittent_annular_quality(s: &Local) -> f64 {
     let rho_ratio = s.vap_sat.rho.max(TINY) / s.rho_l_sat.max(TINY);
     let mu_ratio = s.mu_l.max(TINY) / s.vap_sat.mu.max(TINY);
@@ -132,8 +133,9 @@ struct DryoutBasis {
     density_root: f64,
     /// 0.7 ln q̃.
     tail: f64,
-    /// The share of the flow past the intermittent/annular transition, S(½ + (x_s − x_IA)/0.05)
-    /// with x_s the static quality and x_IA from [`intermittent_annular_quality`].
+    /// The share of the flow past the intermittent/annular transition, S(½ + (x_s − x_IA)/w)
+    /// with x_s the static quality, x_IA from [`intermittent_annular_quality`] and w =
+    /// `IA_WIDTH`.
     annular: f64,
 }
 
@@ -174,8 +176,9 @@ pub struct RegimeBasis {
 ///
 /// With G the total mass flux and χ the [`regime_quality`]:
 /// s_strat = S(½ + ln(G/G_strat)/w), s_wavy = S(½ + ln(G/G_wavy)/w),
-/// s_dry = S(½ + ln(G/ṁ_dry)/w) S(½ + (χ − x_IA)/0.05) (S the smooth step, w = `regime_width`,
-/// ṁ_dry from [`dryout_mass_flux`], x_IA from [`intermittent_annular_quality`]),
+/// s_dry = S(½ + ln(G/ṁ_dry)/w) S(½ + (x_s − x_IA)/0.05) (S the smooth step, w = `regime_width`,
+/// ṁ_dry from [`dryout_mass_flux`], x_s the [`static_quality`], x_IA from
+/// [`intermittent_annular_quality`]),
 /// mist = S(½ + (χ − xmin)/0.05), dry = 1 − (1 − s_dry)(1 − mist);
 /// stratified = (1 − dry)(1 − s_strat), wavy = (1 − dry) s_strat (1 − s_wavy),
 /// annular = (1 − dry) s_strat s_wavy, dryout = dry.
@@ -186,7 +189,10 @@ pub struct RegimeBasis {
 /// fraction of 0.46 (χ ≈ 0.02) into dryout whenever a surge raised its mass flux, and took it
 /// as drops: at the subcooled NBS inlet a dryout weight of 0.03–0.08 multiplied the liquid's
 /// interface coefficient by 25, the vapour collapsed, the mass flux fell back and the cycle
-/// repeated every 40 ms (BENCHMARKS.md, "The dryout regime's liquid as a stream").
+/// repeated every 40 ms (BENCHMARKS.md, "The dryout regime's liquid as a stream"). The bound
+/// reads the static quality, not χ: χ moves with the slip, and where a flow's quality sat at
+/// x_IA (para-hydrogen's exit after its chilldown at 11 atm) the bound on χ fed back on the drag
+/// (slip down, quality down, dryout down, drag down, slip up) from step to step.
 pub fn flow_regime(s: &Local, p: &CryoParams, q_wall: f64) -> Regime {
     flow_regime_cached(s, p, q_wall, &mut RegimeBasis::default())
 }
