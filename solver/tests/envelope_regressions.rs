@@ -415,3 +415,22 @@ fn a_merge_near_the_critical_point_leaves_a_cell_that_fills() {
     assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
     assert!(s.trace_adjustment_j.abs() < 3350.0, "trace adjustments {} J", s.trace_adjustment_j);
 }
+
+/// Saturated para-hydrogen at 11 atm with `examples/nbs/calibrated.toml`: after the chilldown
+/// (about 32 s) the dewar's liquid, saturated at 11.8 bar, enters an inlet cell at about 10 bar,
+/// past halfway to its superheat limit there. The nucleation that flashes such liquid was
+/// switched by the cell's own liquid alone: on alternate steps it was off, the inflow carried
+/// the cell's liquid past its table's end, and it was on, flashing it all back — the cell's
+/// pressure flipped between 1.0066 and 1.0427 MPa at every step of the steady flow, its volume
+/// errors held the steps at 3.4 ms, and the first 60 s took 19 970 steps (8 504 now).
+#[test]
+fn a_flashing_inflow_does_not_flip_the_inlet_cell() {
+    let table = fluids::embedded("parahydrogen").unwrap();
+    let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
+    let case = envelope_11atm("parahydrogen", t_sat, 60.0);
+    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let s = run(&case, &set).summary;
+    assert!(s.simulated_time_s >= 60.0 - 1e-9);
+    assert!(s.steps < 12_000, "{} steps", s.steps);
+    assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
+}

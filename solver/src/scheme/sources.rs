@@ -16,7 +16,8 @@ impl Scheme<'_> {
     /// `w.sources`, and each cell's new wetted fraction, into `w.wetted`.
     pub(super) fn old_time_sources(&self, st: &StepInput, w: &mut Work) {
         for i in 0..st.n {
-            let (src, wetted) = self.sources(st.s, i, st.dt);
+            let entering = entering_liquid_temperature(st, i);
+            let (src, wetted) = self.sources(st.s, i, st.dt, entering);
             w.sources[i] = src;
             w.wetted[i] = wetted;
         }
@@ -94,7 +95,7 @@ impl Scheme<'_> {
     /// coupling ([`Scheme::wall_coupling`]), then the phase change between the phases and at the
     /// wall ([`Scheme::phase_change_sources`]) or, without one, a plain exchange of heat
     /// ([`Scheme::exchange_sources`]).
-    fn sources(&self, s: &State, i: usize, dt: f64) -> (Sources, f64) {
+    fn sources(&self, s: &State, i: usize, dt: f64, entering_t_l: f64) -> (Sources, f64) {
         let ph = &self.physics;
         let cp = &ph.cryo;
         let a = s.alpha[i];
@@ -111,7 +112,7 @@ impl Scheme<'_> {
             local = local.with_boiling_basis(self.fluid);
         }
         let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[i]);
-        let cell = CellView { s, i, dt, local, regime, gas_here, liq_here, pres_g, pres_l, tg, tl };
+        let cell = CellView { s, i, dt, local, regime, gas_here, liq_here, pres_g, pres_l, tg, tl, entering_t_l };
         let (wall, wetted) = self.wall_coupling(&cell);
         // Liquid above its saturation temperature flashes even where no vapour is left
         // (cryo::flashing_htc: bubbles nucleate): the vapour it makes starts the gas phase.
@@ -215,7 +216,9 @@ impl Scheme<'_> {
         // cooled 15–20 K below saturation, towards the end of its property table.
         let subcooled_gas = smooth_step(sat.t_sat - s.t_g[i]) * s.m_g[i].max(0.0) * gp.cp / BLEND_RELAXATION_S;
         let h_ig = scale * iph.h_ig + blend(cell.pres_g, s.m_g[i], gp.cp) + subcooled_gas;
-        let h_il = scale * iph.h_il + blend(cell.pres_l, s.m_l[i], lp.cp) + self.superheat_limit_htc(s, i, sat.t_sat);
+        let h_il = scale * iph.h_il
+            + blend(cell.pres_l, s.m_l[i], lp.cp)
+            + self.superheat_limit_htc(s, i, sat.t_sat, cell.entering_t_l);
         let q_sum = h_ig * (sat.t_sat - s.t_g[i]) + h_il * (sat.t_sat - s.t_l[i]);
         let (hg_star, hl_star) = if q_sum <= 0.0 { (sat.h_g, lp.h) } else { (gp.h, sat.h_l) };
         let dh = (hg_star - hl_star).max(1e-3 * sat.h_lg);
@@ -286,6 +289,9 @@ struct CellView<'a> {
     tg: Lin,
     /// See `tg`.
     tl: Lin,
+    /// The highest temperature of the liquid the old velocities carry into the cell
+    /// ([`entering_liquid_temperature`]), K; −∞ where none enters.
+    entering_t_l: f64,
 }
 
 /// The wall's heat per unit fluid volume, linear in the cell unknowns, W/m³.
@@ -455,7 +461,8 @@ const SUPERHEAT_LIMIT_FULL: f64 = 0.9;
 
 impl Scheme<'_> {
     /// Heat transfer coefficient per unit volume, W/(m³ K), that flashes liquid superheated
-    /// towards the end of its metastable table within [`BLEND_RELAXATION_S`].
+    /// towards the end of its metastable table within [`BLEND_RELAXATION_S`]; `entering_t_l` is
+    /// the hottest liquid flowing into the cell ([`entering_liquid_temperature`]).
     ///
     /// Decision: liquid superheated far beyond saturation does not wait for the closures'
     /// bubbles (their interface area is made for ordinary boiling): near its superheat limit it
@@ -466,8 +473,21 @@ impl Scheme<'_> {
     /// low `Gwsc` most of the wall's boiling heat stayed in the liquid, which superheated by
     /// 19 K at 5 bar until it left the table and the run ended. Liquid less superheated than
     /// half the way is not touched.
-    fn superheat_limit_htc(&self, s: &State, i: usize, t_sat: f64) -> f64 {
-        let superheat = s.t_l[i] - t_sat;
+    ///
+    /// Decision: the way is measured on the liquid entering the cell as well as on the cell's
+    /// own, and the farther of the two counts. Liquid that arrives past halfway to its limit at
+    /// the cell's pressure flashes as it enters, and the cell's liquid, which it stirs, is held
+    /// at saturation with it. Measured on the cell's liquid alone, the relaxation switched on
+    /// and off on alternate steps where such liquid flowed in steadily: a step that began with
+    /// the cell's liquid near saturation did not flash it, the inflow carried it past its
+    /// table's end (recovered at the edge), the next step flashed it all back to saturation,
+    /// and so on. Para-hydrogen saturated at 11 atm entering the NBS line's inlet cell at
+    /// 10 atm (`examples/nbs/calibrated.toml`, the envelope's slowest run) flipped that way at
+    /// every step of its 260 s of steady flow after the chilldown, the cell's pressure between
+    /// 1.0066 and 1.0427 MPa, and its volume errors held the steps at 3.4 ms (BENCHMARKS.md,
+    /// "Flashing inflow").
+    fn superheat_limit_htc(&self, s: &State, i: usize, t_sat: f64, entering_t_l: f64) -> f64 {
+        let superheat = (s.t_l[i] - t_sat).max(entering_t_l - t_sat);
         if superheat <= 0.0 {
             return 0.0;
         }
@@ -479,4 +499,34 @@ impl Scheme<'_> {
         let weight = smooth_step((reach - SUPERHEAT_LIMIT_ONSET) / (SUPERHEAT_LIMIT_FULL - SUPERHEAT_LIMIT_ONSET));
         if weight > 0.0 { weight * s.m_l[i].max(0.0) * s.liquid[i].cp / BLEND_RELAXATION_S } else { 0.0 }
     }
+}
+
+/// The highest temperature of the liquid that the old velocities carry into cell `i`: through
+/// each face where the liquid moves into the cell, the temperature of the liquid on the other
+/// side (the neighbouring cell's, or the boundary's where the face is the line's end), if
+/// liquid is there; −∞ where no liquid enters.
+fn entering_liquid_temperature(st: &StepInput, i: usize) -> f64 {
+    let s = st.s;
+    let mut t = f64::NEG_INFINITY;
+    // the left face (junction i) carries liquid in where it moves along the line
+    if s.v_l[i] > 0.0 {
+        if i == 0 {
+            if st.inlet0.alpha < 1.0 {
+                t = t.max(st.inlet0.t_l);
+            }
+        } else if present(s.m_l[i - 1], s.m_g[i - 1]) {
+            t = t.max(s.t_l[i - 1]);
+        }
+    }
+    // the right face (junction i + 1) where it moves against the line
+    if s.v_l[i + 1] < 0.0 {
+        if i + 1 == st.n {
+            if st.outlet0.alpha < 1.0 {
+                t = t.max(st.outlet0.t_l);
+            }
+        } else if present(s.m_l[i + 1], s.m_g[i + 1]) {
+            t = t.max(s.t_l[i + 1]);
+        }
+    }
+    t
 }
