@@ -507,26 +507,18 @@ impl Scheme<'_> {
 /// liquid is there; −∞ where no liquid enters.
 fn entering_liquid_temperature(st: &StepInput, i: usize) -> f64 {
     let s = st.s;
-    let mut t = f64::NEG_INFINITY;
-    // the left face (junction i) carries liquid in where it moves along the line
-    if s.v_l[i] > 0.0 {
-        if i == 0 {
-            if st.inlet0.alpha < 1.0 {
-                t = t.max(st.inlet0.t_l);
-            }
-        } else if present(s.m_l[i - 1], s.m_g[i - 1]) {
-            t = t.max(s.t_l[i - 1]);
-        }
-    }
-    // the right face (junction i + 1) where it moves against the line
-    if s.v_l[i + 1] < 0.0 {
-        if i + 1 == st.n {
-            if st.outlet0.alpha < 1.0 {
-                t = t.max(st.outlet0.t_l);
-            }
-        } else if present(s.m_l[i + 1], s.m_g[i + 1]) {
-            t = t.max(s.t_l[i + 1]);
-        }
-    }
-    t
+    // each face: whether the liquid moves into the cell through it, the cell beyond it (none at
+    // the line's end) and the boundary there
+    let faces = [
+        (s.v_l[i] > 0.0, i.checked_sub(1), st.inlet0),
+        (s.v_l[i + 1] < 0.0, (i + 1 < st.n).then_some(i + 1), st.outlet0),
+    ];
+    faces
+        .into_iter()
+        .filter(|&(entering, _, _)| entering)
+        .filter_map(|(_, beyond, boundary)| match beyond {
+            Some(k) => present(s.m_l[k], s.m_g[k]).then_some(s.t_l[k]),
+            None => (boundary.alpha < 1.0).then_some(boundary.t_l),
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
 }
