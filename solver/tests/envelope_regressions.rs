@@ -434,3 +434,22 @@ fn a_flashing_inflow_does_not_flip_the_inlet_cell() {
     assert!(s.steps < 12_000, "{} steps", s.steps);
     assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
 }
+
+/// Saturated para-hydrogen at 11 atm at a point of a six-run fit (`six-refit-point.toml`):
+/// after the chilldown (about 32 s) a saturated mixture (x = 0.32, 2.1 bar) left the exit at
+/// 190–218 m/s against the 83 kPa beyond, below the frozen mixture's speed of sound (227 m/s)
+/// and above the flashing one (175 m/s). Unchoked, the exit's flow flickered with a period of
+/// 5 ms for the rest of the run: 55 008 steps for the first 60 s (492 299 for 300 s, energy
+/// balance error 1.4e-3). A saturated exit now chokes at its flashing mixture's speed
+/// (`scheme::choking`, `critical_speed`): 7 449 steps.
+#[test]
+fn a_saturated_discharge_chokes_at_its_flashing_speed() {
+    let table = fluids::embedded("parahydrogen").unwrap();
+    let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
+    let case = envelope_11atm("parahydrogen", t_sat, 60.0);
+    let s = run(&case, &params("six-refit-point.toml")).summary;
+    assert!(s.simulated_time_s >= 60.0 - 1e-9);
+    assert!(s.steps < 15_000, "{} steps", s.steps);
+    assert!(s.exit_choked_s > 10.0, "exit choked for {} s", s.exit_choked_s);
+    assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
+}

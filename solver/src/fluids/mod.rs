@@ -26,7 +26,7 @@ mod hermite;
 mod sound;
 mod table;
 
-pub use sound::frozen_mixture_sound_speed;
+pub use sound::{flashing_mixture_sound_speed, frozen_mixture_sound_speed};
 pub use table::{
     FluidConstants, FluidTable, Isobar, LimiterReport, PhaseProps, PhaseValues, Saturation, StabilityViolation,
     StableState,
