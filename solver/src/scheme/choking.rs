@@ -173,23 +173,22 @@ impl Scheme<'_> {
 }
 
 /// The critical speed of cell `c`'s two-phase mixture, m/s: its speed without phase change
-/// (`frozen`, Wood's) where either phase is away from saturation, the flashing mixture's
-/// ([`flashing_mixture_sound_speed`], at the cell's static quality; at most the frozen speed,
-/// which it exceeds only at qualities so low that the saturated liquid's expansion along its
-/// saturation line outweighs the phase change, and where it has none) where both are
-/// saturated, and between the two, geometrically, as the gas's superheat and the liquid's
-/// subcooling fall below [`EQUILIBRIUM_WIDTH_K`].
+/// (`frozen`, Wood's) where either phase is away from saturation, and with the part of the
+/// phase change a discharge completes ([`flashing_mixture_sound_speed`]) as the gas's superheat
+/// and the liquid's subcooling fall below [`EQUILIBRIUM_WIDTH_K`].
 ///
 /// Decision: a discharge flashes as it expands only where its phases are at saturation; drops
 /// in warm vapour or subcooled liquid under vapour leave at the frozen speed (the module's
-/// first decision). Where both are saturated the frozen speed is far too high: para-hydrogen
+/// first decision). Where both are saturated the frozen speed is too high: para-hydrogen
 /// saturated at 11 atm on the NBS line (300 s, 30 cells), with the parameters of a six-run fit
 /// on this solver (`hg_drop_gain` 4.28, `hg_drop_eps` 4.1e-5, `kutateladze_k` 0.238), reached a
 /// saturated mixture at the exit after its chilldown (x = 0.32, 2.1 bar) leaving at 190–218 m/s
 /// against the 83 kPa beyond, where Wood's speed is 227 m/s and the flashing one 175 m/s; the
 /// flow flickered with a period of 5 ms for the rest of the run, 492 299 steps at 0.5 ms and an
-/// energy balance error of 1.4e-3. With the flashing speed the exit chokes there and the run
-/// takes 14 945 steps, 2.8e-4.
+/// energy balance error of 1.4e-3. With the flashing speed the exit chokes there from the
+/// chilldown on: 14 043 steps, 2.8e-4. (On the NBS cases at the defaults the station-4
+/// chilldowns moved by +0.26 / +0.32 / −0.55 s, nitrogen saturated 2.5 / 3.4 and subcooled
+/// 4.2 atm; the hydrogen runs' exits never reach saturation and are unchanged.)
 fn critical_speed(frozen: f64, s: &State, c: usize) -> f64 {
     let sat = &s.sat[c];
     if sat.h_lg <= 0.0 {
@@ -200,11 +199,7 @@ fn critical_speed(frozen: f64, s: &State, c: usize) -> f64 {
     if saturated == 0.0 {
         return frozen;
     }
-    let (m_g, m_l) = (s.alpha[c] * s.gas[c].rho, (1.0 - s.alpha[c]) * s.liquid[c].rho);
-    match flashing_mixture_sound_speed(m_g / (m_g + m_l), sat) {
-        Some(flashing) => (frozen.ln() * (1.0 - saturated) + flashing.min(frozen).ln() * saturated).exp(),
-        None => frozen,
-    }
+    flashing_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c], sat, saturated).map_or(frozen, |f| f.min(frozen))
 }
 
 /// How far (K) the gas's superheat or the liquid's subcooling at the exit goes before its
