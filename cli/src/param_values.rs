@@ -289,6 +289,7 @@ mod tests {
             [
                 "calibrated-120.toml",
                 "calibrated-fb.toml",
+                "calibrated-refit.toml",
                 "calibrated-regime.toml",
                 "calibrated-six.toml",
                 "calibrated.toml"

@@ -189,7 +189,7 @@ impl Scheme<'_> {
 /// chilldown on: 14 043 steps, 2.8e-4. (On the NBS cases at the defaults the station-4
 /// chilldowns moved by +0.26 / +0.32 / −0.55 s, nitrogen saturated 2.5 / 3.4 and subcooled
 /// 4.2 atm; the hydrogen runs' exits never reach saturation and are unchanged.)
-fn critical_speed(frozen: f64, s: &State, c: usize) -> f64 {
+pub(super) fn critical_speed(frozen: f64, s: &State, c: usize) -> f64 {
     let sat = &s.sat[c];
     if sat.h_lg <= 0.0 {
         return frozen;
