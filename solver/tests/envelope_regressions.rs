@@ -442,7 +442,7 @@ fn a_flashing_inflow_does_not_flip_the_inlet_cell() {
 /// and above the flashing one (175 m/s). Unchoked, the exit's flow flickered with a period of
 /// 5 ms for the rest of the run: 55 008 steps for the first 60 s (492 299 for 300 s, energy
 /// balance error 1.4e-3). A saturated exit now chokes at its flashing mixture's speed
-/// (`scheme::choking`, `critical_speed`): 7 348 steps (14 043 for 300 s, 2.8e-4).
+/// (`scheme::choking`, `two_phase_critical_speed`): 7 348 steps (14 043 for 300 s, 2.8e-4).
 #[test]
 fn a_saturated_discharge_chokes_at_its_flashing_speed() {
     let table = fluids::embedded("parahydrogen").unwrap();

@@ -121,7 +121,7 @@ mod tests {
         assert!(mid > 10.0 && mid < 0.5 * c_g, "α = 0.95: {mid} m/s against the gas's {c_g} m/s");
     }
 
-    /// Saturated nitrogen at 2 bar, each phase 0.01 K off saturation.
+    /// Saturated nitrogen at `p`, each phase 0.01 K off saturation.
     fn saturated_n2(p: f64) -> (crate::fluids::PhaseProps, crate::fluids::PhaseProps, crate::fluids::Saturation) {
         let n2 = embedded("nitrogen").unwrap();
         let sat = n2.saturation(p).unwrap();

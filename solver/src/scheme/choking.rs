@@ -11,8 +11,8 @@
 //! ([`frozen_mixture_sound_speed`], Wood's, each phase at its own state; the gas's own where it
 //! is all gas), at the old time, where its phases are out of equilibrium; RELAP5 takes a
 //! homogeneous-equilibrium speed from the saturation line instead. Where both phases are
-//! saturated the mixture flashes as it expands, and a is the flashing speed ([`critical_speed`]
-//! below). The two fluids here are seldom in equilibrium at the exit: on the
+//! saturated the mixture flashes as it expands, and a is the flashing speed
+//! ([`two_phase_critical_speed`] below). The two fluids here are seldom in equilibrium at the exit: on the
 //! NBS hydrogen runs a trace of drops travels in gas at 100–290 K, whose own speed is
 //! 600–1300 m/s, while the equilibrium speed at saturation is 320 m/s; with it the exit choked
 //! and unchoked as the trace came and went, and the runs took thirteen times the steps. Wood's
@@ -75,10 +75,7 @@ impl Scheme<'_> {
         let gas = present(s.m_g[c], s.m_l[c]);
         let liquid = present(s.m_l[c], s.m_g[c]);
         let speed = match (gas, liquid) {
-            (true, true) => {
-                let frozen = frozen_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c])?;
-                critical_speed(frozen, s, c)
-            }
+            (true, true) => two_phase_critical_speed(s, c)?,
             (true, false) => s.gas[c].sound_speed()?,
             _ => return None,
         };
@@ -172,8 +169,9 @@ impl Scheme<'_> {
     }
 }
 
-/// The critical speed of cell `c`'s two-phase mixture, m/s: its speed without phase change
-/// (`frozen`, Wood's) where either phase is away from saturation, and with the part of the
+/// The critical speed (m/s) against which the exit's choking checks the outflow of cell `c` of
+/// `s` where it holds both phases: its speed without phase change (Wood's) where either phase is
+/// away from saturation, and with the part of the
 /// phase change a discharge completes ([`flashing_mixture_sound_speed`]) as the gas's superheat
 /// and the liquid's subcooling fall below [`EQUILIBRIUM_WIDTH_K`].
 ///
@@ -189,21 +187,24 @@ impl Scheme<'_> {
 /// chilldown on: 14 043 steps, 2.8e-4. (On the NBS cases at the defaults the station-4
 /// chilldowns moved by +0.26 / +0.32 / −0.55 s, nitrogen saturated 2.5 / 3.4 and subcooled
 /// 4.2 atm; the hydrogen runs' exits never reach saturation and are unchanged.)
-pub(super) fn critical_speed(frozen: f64, s: &State, c: usize) -> f64 {
+/// `None` where a phase's speed is not defined.
+pub fn two_phase_critical_speed(s: &State, c: usize) -> Option<f64> {
+    let frozen = frozen_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c])?;
     let sat = &s.sat[c];
     if sat.h_lg <= 0.0 {
-        return frozen;
+        return Some(frozen);
     }
     let saturated = (1.0 - smooth_step((s.t_g[c] - sat.t_sat) / EQUILIBRIUM_WIDTH_K))
         * (1.0 - smooth_step((sat.t_sat - s.t_l[c]) / EQUILIBRIUM_WIDTH_K));
     if saturated == 0.0 {
-        return frozen;
+        return Some(frozen);
     }
-    flashing_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c], sat, saturated).map_or(frozen, |f| f.min(frozen))
+    let flashing = flashing_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c], sat, saturated);
+    Some(flashing.map_or(frozen, |f| f.min(frozen)))
 }
 
 /// How far (K) the gas's superheat or the liquid's subcooling at the exit goes before its
-/// critical speed is the frozen mixture's alone ([`critical_speed`]).
+/// critical speed is the frozen mixture's alone ([`two_phase_critical_speed`]).
 pub const EQUILIBRIUM_WIDTH_K: f64 = 2.0;
 
 /// The exit's choking criterion over a step, from the old state

@@ -79,17 +79,9 @@ use crate::fluids::{FluidTable, Saturation};
 use crate::model::{BoundaryState, Grid, State};
 
 use acceptance::{all_finite, volume_error_check};
-
-/// The critical speed (m/s) against which the exit's choking checks the outflow of cell `c` of
-/// `s` where it holds both phases: Wood's speed, with the share of the phase change where both
-/// phases are near saturation (`choking.rs`, `critical_speed`); `None` where a phase's speed is not
-/// defined.
-pub fn two_phase_critical_speed(s: &State, c: usize) -> Option<f64> {
-    let frozen = crate::fluids::frozen_mixture_sound_speed(s.alpha[c], &s.gas[c], &s.liquid[c])?;
-    Some(choking::critical_speed(frozen, s, c))
-}
 pub use balance::StepBudget;
 use choking::MAX_CHOKE_PASSES;
+pub use choking::two_phase_critical_speed;
 use momentum::JunctionWork;
 use sources::Sources;
 
