@@ -289,8 +289,8 @@ mod tests {
             [
                 "calibrated-120.toml",
                 "calibrated-fb.toml",
-                "calibrated-refit.toml",
                 "calibrated-regime.toml",
+                "calibrated-six-drops.toml",
                 "calibrated-six.toml",
                 "calibrated.toml"
             ],

@@ -188,13 +188,13 @@ fn a_vapour_alone_near_the_critical_point_limits_its_correction() {
 /// the default parameters between 6 and 8 s; with the outputs interpolated instead of landed
 /// on, the default parameters on 20 cells between 6 and 8 s; with the drag's Newton slope no
 /// longer bounded, the calibrated parameters on 10 cells within 20 s; with no dryout below the
-/// intermittent/annular transition, `examples/nbs/calibrated.toml` on 25 cells within 20 s (9–11
+/// intermittent/annular transition, `examples/nbs/calibrated-six-drops.toml` on 25 cells within 20 s (9–11
 /// times), which keep the recovery exercised here.)
 #[test]
 fn a_near_critical_cell_is_recovered_as_one_mixture() {
     let mut case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 20.0);
     case.pipe.cells = 25;
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 20.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
@@ -400,11 +400,11 @@ fn a_merge_near_the_critical_point_leaves_a_cell_that_fills() {
     assert!(s.simulated_time_s >= case.time.end_s - 1e-9);
     assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
     assert!(s.trace_adjustment_j.abs() < 3350.0, "trace adjustments {} J", s.trace_adjustment_j);
-    // subcooled para-hydrogen at 11 atm with `examples/nbs/calibrated.toml` on 30 cells: its
+    // subcooled para-hydrogen at 11 atm with `examples/nbs/calibrated-six-drops.toml` on 30 cells: its
     // surges cross the critical pressure, and its cells need both recoveries, as one mixture
     // and at the pressure that fills them
     let case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 20.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
     let s = run(&case, &set).summary;
     assert!(s.simulated_time_s >= 20.0 - 1e-9);
     assert!(
@@ -417,7 +417,7 @@ fn a_merge_near_the_critical_point_leaves_a_cell_that_fills() {
     assert!(s.trace_adjustment_j.abs() < 3350.0, "trace adjustments {} J", s.trace_adjustment_j);
 }
 
-/// Saturated para-hydrogen at 11 atm with `examples/nbs/calibrated.toml`: after the chilldown
+/// Saturated para-hydrogen at 11 atm with `examples/nbs/calibrated-six-drops.toml`: after the chilldown
 /// (about 32 s) the dewar's liquid, saturated at 11.8 bar, enters an inlet cell at about 10 bar,
 /// past halfway to its superheat limit there. The nucleation that flashes such liquid was
 /// switched by the cell's own liquid alone: on alternate steps it was off, the inflow carried
@@ -429,7 +429,7 @@ fn a_flashing_inflow_does_not_flip_the_inlet_cell() {
     let table = fluids::embedded("parahydrogen").unwrap();
     let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
     let case = envelope_11atm("parahydrogen", t_sat, 60.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
     let s = run(&case, &set).summary;
     assert!(s.simulated_time_s >= 60.0 - 1e-9);
     assert!(s.steps < 12_000, "{} steps", s.steps);

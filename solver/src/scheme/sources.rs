@@ -482,7 +482,7 @@ impl Scheme<'_> {
     /// the cell's liquid near saturation did not flash it, the inflow carried it past its
     /// table's end (recovered at the edge), the next step flashed it all back to saturation,
     /// and so on. Para-hydrogen saturated at 11 atm entering the NBS line's inlet cell at
-    /// 10 atm (`examples/nbs/calibrated.toml`, the envelope's slowest run) flipped that way at
+    /// 10 atm (`examples/nbs/calibrated-six-drops.toml`, the envelope's slowest run) flipped that way at
     /// every step of its 260 s of steady flow after the chilldown, the cell's pressure between
     /// 1.0066 and 1.0427 MPa, and its volume errors held the steps at 3.4 ms (BENCHMARKS.md,
     /// "Flashing inflow").
