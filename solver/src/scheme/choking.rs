@@ -12,8 +12,8 @@
 //! is all gas), at the old time, where its phases are out of equilibrium; RELAP5 takes a
 //! homogeneous-equilibrium speed from the saturation line instead. Where both phases are
 //! saturated the mixture flashes as it expands, and a is the flashing speed
-//! ([`two_phase_critical_speed`] below). The two fluids here are seldom in equilibrium at the exit: on the
-//! NBS hydrogen runs a trace of drops travels in gas at 100–290 K, whose own speed is
+//! ([`two_phase_critical_speed`] below). The two fluids here are seldom in equilibrium at the
+//! exit: on the NBS hydrogen runs a trace of drops travels in gas at 100–290 K, whose own speed is
 //! 600–1300 m/s, while the equilibrium speed at saturation is 320 m/s; with it the exit choked
 //! and unchoked as the trace came and went, and the runs took thirteen times the steps. Wood's
 //! speed is continuous as either phase vanishes and follows each phase's temperature. Only the
@@ -171,9 +171,9 @@ impl Scheme<'_> {
 
 /// The critical speed (m/s) against which the exit's choking checks the outflow of cell `c` of
 /// `s` where it holds both phases: its speed without phase change (Wood's) where either phase is
-/// away from saturation, and with the part of the
-/// phase change a discharge completes ([`flashing_mixture_sound_speed`]) as the gas's superheat
-/// and the liquid's subcooling fall below [`EQUILIBRIUM_WIDTH_K`].
+/// away from saturation, and with the part of the phase change a discharge completes
+/// ([`flashing_mixture_sound_speed`]) as the gas's superheat and the liquid's subcooling fall
+/// below [`EQUILIBRIUM_WIDTH_K`].
 ///
 /// Decision: a discharge flashes as it expands only where its phases are at saturation; drops
 /// in warm vapour or subcooled liquid under vapour leave at the frozen speed (the module's
