@@ -22,6 +22,11 @@ fn params(file: &str) -> ParameterSet {
     params_at(&format!("{}/tests/data/{file}", env!("CARGO_MANIFEST_DIR")))
 }
 
+/// The parameter file `examples/nbs/{stem}.toml`.
+fn nbs_params(stem: &str) -> ParameterSet {
+    params_at(&format!("{}/../examples/nbs/{stem}.toml", env!("CARGO_MANIFEST_DIR")))
+}
+
 /// A `name = number` parameter file.
 fn params_at(path: &str) -> ParameterSet {
     let text = std::fs::read_to_string(path).unwrap();
@@ -148,7 +153,7 @@ fn vapour_past_its_table_condenses_in_a_cell_without_liquid() {
 #[test]
 fn a_volume_error_no_step_shrinks_is_solved_for_the_pressure() {
     let case = envelope_11atm("parahydrogen", 19.619650779, 12.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six");
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 12.0 - 1e-9);
     assert!(out.summary.pressure_refills >= 1, "no cell was refilled");
@@ -167,7 +172,7 @@ fn a_volume_error_no_step_shrinks_is_solved_for_the_pressure() {
 fn a_vapour_alone_near_the_critical_point_limits_its_correction() {
     let mut case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 3.5);
     case.pipe.cells = 120;
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six");
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 3.5 - 1e-9);
 }
@@ -194,7 +199,7 @@ fn a_vapour_alone_near_the_critical_point_limits_its_correction() {
 fn a_near_critical_cell_is_recovered_as_one_mixture() {
     let mut case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 20.0);
     case.pipe.cells = 25;
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six-drops");
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 20.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
@@ -212,7 +217,7 @@ fn a_near_critical_cell_is_recovered_as_one_mixture() {
 #[test]
 fn vapour_from_flashing_enters_within_the_vapour_table() {
     let case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 7.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six");
     let out = run(&case, &set);
     assert!(out.summary.simulated_time_s >= 7.0 - 1e-9);
     assert!(out.summary.energy_balance_error <= 1e-3, "energy balance error {}", out.summary.energy_balance_error);
@@ -290,7 +295,7 @@ fn saturated_11atm_calibrated(fluid: &str, end_s: f64) -> driver::Output {
     let table = fluids::embedded(fluid).unwrap();
     let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
     let case = envelope_11atm(fluid, t_sat, end_s);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six");
     run(&case, &set)
 }
 
@@ -348,7 +353,7 @@ fn a_flashing_outflow_keeps_the_kinetic_energy_its_steps_lose() {
 /// either side of the critical pressure (`Scheme::refill`).
 #[test]
 fn the_near_critical_line_runs_on_every_grid() {
-    let calibrated = params_at(&format!("{}/../examples/nbs/calibrated-six.toml", env!("CARGO_MANIFEST_DIR")));
+    let calibrated = nbs_params("calibrated-six");
     let mut failed = Vec::new();
     for cells in [10, 15, 20, 25, 30, 40] {
         for inlet_k in [subcooled_inlet_k("parahydrogen"), 19.619650779] {
@@ -404,7 +409,7 @@ fn a_merge_near_the_critical_point_leaves_a_cell_that_fills() {
     // surges cross the critical pressure, and its cells need both recoveries, as one mixture
     // and at the pressure that fills them
     let case = envelope_11atm("parahydrogen", subcooled_inlet_k("parahydrogen"), 20.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six-drops");
     let s = run(&case, &set).summary;
     assert!(s.simulated_time_s >= 20.0 - 1e-9);
     assert!(
@@ -429,7 +434,7 @@ fn a_flashing_inflow_does_not_flip_the_inlet_cell() {
     let table = fluids::embedded("parahydrogen").unwrap();
     let t_sat = table.saturation(1_197_662.0).unwrap().t_sat;
     let case = envelope_11atm("parahydrogen", t_sat, 60.0);
-    let set = params_at(&format!("{}/../examples/nbs/calibrated-six-drops.toml", env!("CARGO_MANIFEST_DIR")));
+    let set = nbs_params("calibrated-six-drops");
     let s = run(&case, &set).summary;
     assert!(s.simulated_time_s >= 60.0 - 1e-9);
     assert!(s.steps < 12_000, "{} steps", s.steps);
