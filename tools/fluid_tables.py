@@ -31,7 +31,7 @@ below Tc), the row continues from the equilibrium density.
 
 Pressures run from 1 kPa to 30 MPa (the pressure surges of a chilldown line reach several MPa,
 above the critical pressure of hydrogen and nitrogen, and its liquid hammer can pass 10 MPa), temperatures from the triple point to
-350 K. ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen (see data/fluids/README.md
+500 K (a surge compresses the warm gas ahead of it, and the gas heats as it is compressed). ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen (see data/fluids/README.md
 for which to use when).
 """
 
@@ -67,7 +67,13 @@ P_MAX = 3.0e7  # 300 bar: the liquid hammer of a chilldown line can pass 10 MPa 
 P_DENSE = 1.0e7
 # Node spacing above P_DENSE, up to P_MAX (supercritical, far from every fluid's critical point).
 P_HIGH_STEP = 1.0e6
-T_MAX = 350.0
+# The top of the temperature axis. Up to T_BASE_MAX the nodes are those of the earlier 350 K
+# tables; above it a segment of T_HIGH_STEP spacing carries the gas that a pressure surge
+# compresses: the line's gas starts near 290 K, and compressed adiabatically by a factor of 3
+# (a first-contact surge at the envelope's 11 atm drive) it reaches about 400 K.
+T_BASE_MAX = 350.0
+T_MAX = 500.0
+T_HIGH_STEP = 10.0
 METASTABLE_K = 20.0  # required reach past the saturation line
 MARGIN_INTERVALS = 2  # extra grid intervals computed past that reach
 # A metastable row ends where dp/drho|T has fallen below this fraction of its value on the
@@ -127,12 +133,14 @@ def fluid_axes(cp_name, refine=(1, 1)):
     else:
         t_breaks = [ttr, t_fine_end]
         t_steps = [fine]
-    if 2.2 * tc < T_MAX:
-        t_breaks += [2.2 * tc, T_MAX]
+    if 2.2 * tc < T_BASE_MAX:
+        t_breaks += [2.2 * tc, T_BASE_MAX]
         t_steps += [0.04 * tc, 8.0]
     else:
-        t_breaks += [T_MAX]
+        t_breaks += [T_BASE_MAX]
         t_steps += [0.04 * tc]
+    t_breaks += [T_MAX]
+    t_steps += [T_HIGH_STEP]
     return pressure_segments(pc, p_refine), axis_segments(t_breaks, t_steps)
 
 

@@ -53,8 +53,8 @@ const BLEND_WIDTH_K: f64 = 30.0;
 /// Temperature from which every property is constant, K.
 const T_PLATEAU_K: f64 = T_FIT_MAX_K + BLEND_WIDTH_K;
 /// Upper end of the range [`WallMaterial::temperature_from_energy`] clamps to, K. Above the
-/// solver's 350 K fluid tables, with margin.
-const T_MAX_K: f64 = 400.0;
+/// solver's 500 K fluid tables, with margin.
+const T_MAX_K: f64 = 550.0;
 /// Width of the energy table's quadrature cells, K. Divides both 300 K − 4 K and 330 K − 4 K,
 /// so the blend joints are cell edges.
 const CELL_K: f64 = 1.0;
@@ -709,7 +709,7 @@ mod tests {
                 assert!((back - t).abs() < 1e-9, "{m:?}: {t} -> {back}");
                 t += 0.173;
             }
-            for t in [4.0 + 1e-6, 4.5, 5.0, 19.99, 300.0, 330.0, 350.0, 399.9, 400.0] {
+            for t in [4.0 + 1e-6, 4.5, 5.0, 19.99, 300.0, 330.0, 350.0, 399.9, 400.0, 500.0, 549.9] {
                 let back = m.temperature_from_energy(m.specific_energy_j_kg(t));
                 assert!((back - t).abs() < 1e-9, "{m:?}: {t} -> {back}");
             }

@@ -459,3 +459,27 @@ fn a_saturated_discharge_chokes_at_its_flashing_speed() {
     assert!(s.exit_choked_s > 10.0, "exit choked for {} s", s.exit_choked_s);
     assert!(s.energy_balance_error.abs() < 1e-3, "energy balance error {}", s.energy_balance_error);
 }
+
+/// Subcooled para-hydrogen at 11 atm (the inlet at 19.62 K), `calibrated.toml` with the regime
+/// transitions' width at 0.45: the first contact's surge (4.4 MPa at the first station at
+/// 2.6 s) pushed the line's gas out at up to 840 m/s and compressed it as it went, and the exit
+/// cell's gas, at 290 K before, passed the tables' former top temperature of 350 K (its energy
+/// 3.75 MJ/kg); the run ended at 3.01 s with its steps halved below 1e-9 s (the envelope's run,
+/// its inlet at 19.6197 K, the same way at 2.58 s). The tables now reach 500 K.
+#[test]
+fn a_surge_compresses_the_gas_past_350_k_inside_the_tables() {
+    let mut case = envelope_11atm("parahydrogen", 19.62, 4.0);
+    case.time.output_interval_s = 5e-4;
+    let mut set = nbs_params("calibrated");
+    set.set("regime_width", 0.45).unwrap();
+    let out = run(&case, &set);
+    assert!(out.summary.simulated_time_s >= 4.0 - 1e-9);
+    let hottest = out
+        .probes
+        .iter()
+        .filter(|o| o.quantity == "gas_temperature_k")
+        .map(|o| o.value)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(hottest > 350.0, "the gas reached only {hottest} K");
+    assert!(fluids::embedded("parahydrogen").unwrap().constants().t_max_k >= 500.0);
+}

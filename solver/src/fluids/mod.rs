@@ -5,7 +5,7 @@
 //! Each phase is a smooth function of **pressure and temperature** `(p, T)`. The solver carries
 //! phasic temperatures; where it knows a phasic internal energy instead (after the conservative
 //! energy solve) it inverts `u(p, T)` with [`FluidTable::temperature_from_energy`]. `(p, T)` was
-//! chosen over `(p, u)` because the coverage of a table (triple point, melting line, 350 K, a
+//! chosen over `(p, u)` because the coverage of a table (triple point, melting line, 500 K, a
 //! fixed reach past saturation) is naturally expressed in temperature, and because the wall heat
 //! transfer closures need temperatures anyway.
 //!
