@@ -30,9 +30,10 @@ a row's density branch cannot follow it across the pseudo-critical line (a tempe
 below Tc), the row continues from the equilibrium density.
 
 Pressures run from 1 kPa to 30 MPa (the pressure surges of a chilldown line reach several MPa,
-above the critical pressure of hydrogen and nitrogen, and its liquid hammer can pass 10 MPa), temperatures from the triple point to
-500 K (a surge compresses the warm gas ahead of it, and the gas heats as it is compressed). ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen (see data/fluids/README.md
-for which to use when).
+above the critical pressure of hydrogen and nitrogen, and its liquid hammer can pass 10 MPa),
+temperatures from the triple point to 500 K (a surge compresses the warm gas ahead of it, and the
+gas heats as it is compressed). ``hydrogen`` is normal hydrogen, ``parahydrogen`` para-hydrogen
+(see data/fluids/README.md for which to use when).
 """
 
 from __future__ import annotations
