@@ -41,6 +41,11 @@ pub fn smooth_step(x: f64) -> f64 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// The slope of [`smooth_step`], 6 x (1 − x) on (0, 1) and 0 outside.
+pub fn smooth_step_slope(x: f64) -> f64 {
+    if x <= 0.0 || x >= 1.0 { 0.0 } else { 6.0 * x * (1.0 - x) }
+}
+
 /// Presence weight of a phase with volume fraction `frac`: 0 below `x_min`, 1 above `x_max`,
 /// the smooth step between.
 pub fn presence(frac: f64, x_min: f64, x_max: f64) -> f64 {

@@ -1,6 +1,7 @@
-//! Small linear solvers for the scheme: scalar and 2×2-block tridiagonal systems.
+//! Small linear solvers for the scheme: scalar and block-tridiagonal systems (2×2 blocks for
+//! the momentum equations, 4×4 for the pressure equation).
 
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::{Const, DimMin, SMatrix, SVector};
 
 /// Solves the tridiagonal system `a[i] x[i-1] + b[i] x[i] + c[i] x[i+1] = d[i]` in place
 /// (Thomas algorithm; `a[0]` and `c[n-1]` are ignored). Returns `false` on a zero pivot.
@@ -30,16 +31,22 @@ pub fn tridiagonal(a: &[f64], b: &[f64], c: &[f64], d: &mut [f64], scratch: &mut
     true
 }
 
-/// Solves the block-tridiagonal system `L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]` with 2×2
-/// blocks in place (block Thomas algorithm). Returns `false` on a singular pivot block.
-pub fn block_tridiagonal(
-    lower: &[Matrix2<f64>],
-    diag: &[Matrix2<f64>],
-    upper: &[Matrix2<f64>],
-    rhs: &mut [Vector2<f64>],
-    scratch: &mut [Matrix2<f64>],
-) -> bool {
+/// Solves the block-tridiagonal system `L[i] x[i-1] + D[i] x[i] + U[i] x[i+1] = r[i]` with K×K
+/// blocks in place (block Thomas algorithm; `lower[0]` and `upper[n-1]` are ignored). Returns
+/// `false` on a singular pivot block or a solution that is not finite. `scratch` must have the
+/// length of the system.
+pub fn block_tridiagonal<const K: usize>(
+    lower: &[SMatrix<f64, K, K>],
+    diag: &[SMatrix<f64, K, K>],
+    upper: &[SMatrix<f64, K, K>],
+    rhs: &mut [SVector<f64, K>],
+    scratch: &mut [SMatrix<f64, K, K>],
+) -> bool
+where
+    Const<K>: DimMin<Const<K>, Output = Const<K>>,
+{
     let n = diag.len();
+    debug_assert!(lower.len() >= n && upper.len() >= n && rhs.len() >= n && scratch.len() >= n);
     if n == 0 {
         return true;
     }
@@ -56,12 +63,13 @@ pub fn block_tridiagonal(
         let r = rhs[i + 1];
         rhs[i] -= scratch[i + 1] * r;
     }
-    rhs.iter().all(|v| v.iter().all(|x| x.is_finite()))
+    rhs[..n].iter().all(|v| v.iter().all(|x| x.is_finite()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Matrix2, Matrix4, Vector2, Vector4};
 
     #[test]
     fn tridiagonal_matches_direct_product() {
@@ -101,6 +109,36 @@ mod tests {
             })
             .collect();
         let mut s = vec![Matrix2::zeros(); n];
+        assert!(block_tridiagonal(&l, &d, &u, &mut r, &mut s));
+        for i in 0..n {
+            assert!((r[i] - x[i]).norm() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn block_tridiagonal_with_4x4_blocks_matches_direct_product() {
+        let n = 6;
+        let d: Vec<Matrix4<f64>> = (0..n)
+            .map(|i| Matrix4::from_fn(|r, c| if r == c { 6.0 + i as f64 } else { 0.3 * (r as f64 - c as f64) }))
+            .collect();
+        let l: Vec<Matrix4<f64>> =
+            (0..n).map(|_| Matrix4::from_fn(|r, c| if r == c { -1.0 } else { 0.1 * c as f64 })).collect();
+        let u: Vec<Matrix4<f64>> =
+            (0..n).map(|_| Matrix4::from_fn(|r, c| if r == c { -0.5 } else { -0.05 * r as f64 })).collect();
+        let x: Vec<Vector4<f64>> = (0..n).map(|i| Vector4::new(i as f64, -1.0, 0.5 * i as f64, 2.0)).collect();
+        let mut r: Vec<Vector4<f64>> = (0..n)
+            .map(|i| {
+                let mut v = d[i] * x[i];
+                if i > 0 {
+                    v += l[i] * x[i - 1];
+                }
+                if i + 1 < n {
+                    v += u[i] * x[i + 1];
+                }
+                v
+            })
+            .collect();
+        let mut s = vec![Matrix4::zeros(); n];
         assert!(block_tridiagonal(&l, &d, &u, &mut r, &mut s));
         for i in 0..n {
             assert!((r[i] - x[i]).norm() < 1e-12);

@@ -15,10 +15,11 @@
 //! (c) *Pressure*: each cell's expanded (linearised) gas mass, liquid mass, gas energy and liquid
 //! energy equations in the unknowns (δp, δα, δT_g, δT_l) — with interphase heat and mass
 //! transfer and the wall heat linearised implicitly in pressure and phasic temperatures, and the
-//! lumped wall temperature eliminated locally — are solved as a 4×4 system in terms of the
-//! neighbouring pressure changes; the first row gives a tridiagonal pressure equation.
-//! (d) Back-substitution gives the new velocities, provisional void fraction and temperatures,
-//! and provisional interphase and wall heat and mass transfer.
+//! lumped wall temperature eliminated locally, and the donor-cell fluxes with the donors'
+//! contents at the new time (linear in the donor cell's unknowns, as step 2 takes them) — form
+//! a block-tridiagonal system with 4×4 blocks over the cells.
+//! (d) Its solve gives the new pressures and velocities, provisional void fraction and
+//! temperatures, and provisional interphase and wall heat and mass transfer.
 //!
 //! **Step 2.** The unexpanded (conservative) phasic mass and energy equations with the new
 //! velocities, new-time donor-cell fluxes and the provisional sources: four independent
@@ -42,8 +43,8 @@
 //! | `momentum_predictor` | `momentum.rs` | step 1a: the 2×2 block-tridiagonal momentum system |
 //! | `pressure_weights` | `momentum.rs` | step 1b: each junction's velocity–pressure weights |
 //! | `provisional_velocities` | `momentum.rs` | the momentum solve; the heat estimate of the step |
-//! | `pressure_equation` | `pressure.rs` | step 1c: per-cell 4×4 systems → tridiagonal pressure rows |
-//! | `pressure_solve` | `pressure.rs` | step 1d: pressure solve and back-substitution |
+//! | `pressure_equation` | `pressure.rs` | step 1c: per-cell rows of the 4×4 block-tridiagonal pressure system |
+//! | `pressure_solve` | `pressure.rs` | step 1d: its solve for every cell's unknowns |
 //! | `velocity_update` | `pressure.rs` | the new velocities |
 //! | `exit_choke` | `choking.rs` | a choked exit: step 1 again with the exit's resistance |
 //! | `provisional_sources` | `sources.rs` | sources at the provisional state, phase change limited |
@@ -332,7 +333,7 @@ impl<'a> Scheme<'a> {
         self.momentum_predictor(st, w);
         self.pressure_weights(st, w)?;
         self.provisional_velocities(st, w)?;
-        self.pressure_equation(st, w)?;
+        self.pressure_equation(st, w);
         self.pressure_solve(st, w)?;
         Ok(self.velocity_update(st, w))
     }
@@ -487,8 +488,8 @@ struct Work {
     /// See `w_g`.
     w_l: Vec<f64>,
     /// Per cell: a tridiagonal system — sub-diagonal `a`, diagonal `b`, super-diagonal `c`,
-    /// right-hand side `d` (the solution after the solve), solver scratch `s` — the pressure
-    /// equation (`pressure_equation`), then each conservative update.
+    /// right-hand side `d` (the solution after the solve), solver scratch `s` — of each
+    /// conservative update.
     a: Vec<f64>,
     /// See `a`.
     b: Vec<f64>,
@@ -510,15 +511,23 @@ struct Work {
     rhs2: Vec<Vector2<f64>>,
     /// See `lower`.
     scratch2: Vec<Matrix2<f64>>,
-    /// Per cell: the inverse of its 4×4 system, the right-hand side and the coefficients of the
-    /// neighbours' pressure changes (`pressure_equation`, for `pressure_solve`).
-    minv: Vec<Matrix4<f64>>,
-    /// See `minv`.
-    r4: Vec<Vector4<f64>>,
-    /// See `minv`.
-    cl: Vec<Vector4<f64>>,
-    /// See `minv`.
-    cr: Vec<Vector4<f64>>,
+    /// Per cell: its storage terms and residuals (`pressure_equation`; the donors' contents at
+    /// the new time are linear in them).
+    storage: Vec<Matrix4<f64>>,
+    /// See `storage`.
+    residual: Vec<Vector4<f64>>,
+    /// Per cell: the block-tridiagonal pressure system — sub-diagonal, diagonal and
+    /// super-diagonal 4×4 blocks, right-hand sides, solver scratch (`pressure_equation`,
+    /// `pressure_solve`).
+    blo: Vec<Matrix4<f64>>,
+    /// See `blo`.
+    bdi: Vec<Matrix4<f64>>,
+    /// See `blo`.
+    bup: Vec<Matrix4<f64>>,
+    /// See `blo`.
+    brhs: Vec<Vector4<f64>>,
+    /// See `blo`.
+    bscr: Vec<Matrix4<f64>>,
     /// Per cell: the linearised sources at the old state (`old_time_sources`).
     sources: Vec<Sources>,
     /// Per cell: the step-1 unknowns (δp, δα, δT_g, δT_l) (`pressure_solve`).
@@ -541,10 +550,11 @@ fn resize(w: &mut Work, n: usize) {
     w.upper.resize(m, Matrix2::zeros());
     w.rhs2.resize(m, Vector2::zeros());
     w.scratch2.resize(m, Matrix2::zeros());
-    w.minv.resize(n, Matrix4::zeros());
-    w.r4.resize(n, Vector4::zeros());
-    w.cl.resize(n, Vector4::zeros());
-    w.cr.resize(n, Vector4::zeros());
+    for v in [&mut w.storage, &mut w.blo, &mut w.bdi, &mut w.bup, &mut w.bscr] {
+        v.resize(n, Matrix4::zeros());
+    }
+    w.residual.resize(n, Vector4::zeros());
+    w.brhs.resize(n, Vector4::zeros());
     w.sources.resize(n, Sources::default());
     w.wetted.resize(n, 0.0);
     for v in [

@@ -5,7 +5,7 @@
 use nalgebra::Vector4;
 
 use super::{BLEND_RELAXATION_S, Scheme, StepInput, Work, liquid_share, present};
-use crate::closures::{presence, smooth_step};
+use crate::closures::{presence, smooth_step, smooth_step_slope};
 use crate::cryo;
 use crate::fluids::Phase;
 use crate::model::{GRAVITY, State};
@@ -214,7 +214,17 @@ impl Scheme<'_> {
         // Decision: the closures' interface areas (drops, films) are made for superheated
         // vapour; without this, vapour expanded in a pressure swing of a liquid-filled cell
         // cooled 15–20 K below saturation, towards the end of its property table.
-        let subcooled_gas = smooth_step(sat.t_sat - s.t_g[i]) * s.m_g[i].max(0.0) * gp.cp / BLEND_RELAXATION_S;
+        //
+        // Decision: the relaxation is Newton-linearised in the subcooling u = T_sat − T_g. Its
+        // coefficient H S(u) (H = m_g c_p/τ) taken at the old u (Picard) maps the old
+        // subcooling to the new one with the slope −d ln S/d ln u, about −2 near saturation,
+        // at steps hundreds of times τ: the choked saturated NBS tails' exit vapour swung by
+        // ±0.4 K about 0.4 K of subcooling with a period of four steps. The heat H S(u) u is
+        // linearised with its full slope H (S + S′ u); the extra H S′ u acts on the change of u.
+        let subcooling = sat.t_sat - s.t_g[i];
+        let relax = s.m_g[i].max(0.0) * gp.cp / BLEND_RELAXATION_S;
+        let subcooled_gas = smooth_step(subcooling) * relax;
+        let subcooled_slope = smooth_step_slope(subcooling) * relax * subcooling;
         let h_ig = scale * iph.h_ig + blend(cell.pres_g, s.m_g[i], gp.cp) + subcooled_gas;
         let h_il = scale * iph.h_il
             + blend(cell.pres_l, s.m_l[i], lp.cp)
@@ -231,7 +241,8 @@ impl Scheme<'_> {
         } else {
             (Lin::constant(1.0), mass_limit(rate, s.m_g[i], dt))
         };
-        let q_ig = ts.sub(tg).scale(f * h_ig).mul(share);
+        let subcooling_change = ts.sub(tg).sub(Lin::constant(subcooling));
+        let q_ig = ts.sub(tg).scale(h_ig).add(subcooling_change.scale(subcooled_slope)).scale(f).mul(share);
         let q_il = ts.sub(tl).scale(f * h_il).mul(share);
         // (h*: RELAP5's switch — vapour forms at saturation from liquid at its own enthalpy,
         // condenses from vapour at its own enthalpy into saturated liquid)
