@@ -260,4 +260,8 @@ pub struct State {
     /// held its exit exactly at the critical speed (0 where its flow stayed below it without
     /// one; `scheme::choking`): the next step starts from it.
     pub exit_resistance: f64,
+    /// Per cell: whether the step that ended at this state recovered it as one near-critical
+    /// mixture (`scheme::recovery`; the next step refills such a cell where its volume error is
+    /// above the limit); empty at a state no step made.
+    pub mixture: Vec<bool>,
 }

@@ -297,6 +297,7 @@ pub fn initial_state(case: &Case, fluid: &FluidTable, grid: &Grid) -> Result<Sta
         sat: Vec::with_capacity(n),
         boundary_mass_flow: [0.0; 2],
         exit_resistance: 0.0,
+        mixture: vec![false; n],
     };
     for i in 0..n {
         let x = grid.x_cell[i];
