@@ -89,14 +89,18 @@ mod tests {
         }
     }
 
-    #[test]
-    fn block_tridiagonal_matches_direct_product() {
-        let n = 5;
-        let d: Vec<Matrix2<f64>> = (0..n).map(|i| Matrix2::new(5.0 + i as f64, 1.0, -0.5, 4.0)).collect();
-        let l: Vec<Matrix2<f64>> = (0..n).map(|_| Matrix2::new(-1.0, 0.2, 0.0, -1.0)).collect();
-        let u: Vec<Matrix2<f64>> = (0..n).map(|_| Matrix2::new(-0.5, 0.0, 0.1, -1.0)).collect();
-        let x: Vec<Vector2<f64>> = (0..n).map(|i| Vector2::new(i as f64, 1.0 - i as f64)).collect();
-        let mut r: Vec<Vector2<f64>> = (0..n)
+    /// Builds the right-hand sides of the block system (`l`, `d`, `u`) from the solution `x`,
+    /// solves it and checks that the solve gives `x` back.
+    fn solves_back<const K: usize>(
+        l: &[SMatrix<f64, K, K>],
+        d: &[SMatrix<f64, K, K>],
+        u: &[SMatrix<f64, K, K>],
+        x: &[SVector<f64, K>],
+    ) where
+        Const<K>: DimMin<Const<K>, Output = Const<K>>,
+    {
+        let n = d.len();
+        let mut r: Vec<SVector<f64, K>> = (0..n)
             .map(|i| {
                 let mut v = d[i] * x[i];
                 if i > 0 {
@@ -108,11 +112,21 @@ mod tests {
                 v
             })
             .collect();
-        let mut s = vec![Matrix2::zeros(); n];
-        assert!(block_tridiagonal(&l, &d, &u, &mut r, &mut s));
+        let mut s = vec![SMatrix::<f64, K, K>::zeros(); n];
+        assert!(block_tridiagonal(l, d, u, &mut r, &mut s));
         for i in 0..n {
             assert!((r[i] - x[i]).norm() < 1e-12);
         }
+    }
+
+    #[test]
+    fn block_tridiagonal_matches_direct_product() {
+        let n = 5;
+        let d: Vec<Matrix2<f64>> = (0..n).map(|i| Matrix2::new(5.0 + i as f64, 1.0, -0.5, 4.0)).collect();
+        let l: Vec<Matrix2<f64>> = (0..n).map(|_| Matrix2::new(-1.0, 0.2, 0.0, -1.0)).collect();
+        let u: Vec<Matrix2<f64>> = (0..n).map(|_| Matrix2::new(-0.5, 0.0, 0.1, -1.0)).collect();
+        let x: Vec<Vector2<f64>> = (0..n).map(|i| Vector2::new(i as f64, 1.0 - i as f64)).collect();
+        solves_back(&l, &d, &u, &x);
     }
 
     #[test]
@@ -126,22 +140,6 @@ mod tests {
         let u: Vec<Matrix4<f64>> =
             (0..n).map(|_| Matrix4::from_fn(|r, c| if r == c { -0.5 } else { -0.05 * r as f64 })).collect();
         let x: Vec<Vector4<f64>> = (0..n).map(|i| Vector4::new(i as f64, -1.0, 0.5 * i as f64, 2.0)).collect();
-        let mut r: Vec<Vector4<f64>> = (0..n)
-            .map(|i| {
-                let mut v = d[i] * x[i];
-                if i > 0 {
-                    v += l[i] * x[i - 1];
-                }
-                if i + 1 < n {
-                    v += u[i] * x[i + 1];
-                }
-                v
-            })
-            .collect();
-        let mut s = vec![Matrix4::zeros(); n];
-        assert!(block_tridiagonal(&l, &d, &u, &mut r, &mut s));
-        for i in 0..n {
-            assert!((r[i] - x[i]).norm() < 1e-12);
-        }
+        solves_back(&l, &d, &u, &x);
     }
 }
