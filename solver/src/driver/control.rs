@@ -66,6 +66,15 @@ pub struct StepController {
     statistics: StepStatistics,
 }
 
+/// What held an accepted step at the case's largest step (`time.max_dt_s`).
+pub const LARGEST_STEP: &str = "largest step";
+
+/// What held an accepted step at the material Courant limit (`time.max_courant`).
+pub const COURANT_LIMIT: &str = "Courant number";
+
+/// What held an accepted step that ended at the end of the interval it was to reach.
+pub const END_OF_INTERVAL: &str = "end of interval";
+
 /// What the steps of a run were: their numbers, sizes and what held them down.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct StepStatistics {
@@ -79,7 +88,8 @@ pub(super) struct StepStatistics {
     pub(super) max_dt: f64,
     /// Why steps were rejected ("variable: reason") and how often.
     pub(super) rejection_causes: BTreeMap<String, u64>,
-    /// The controlled variable that came closest to its limit in accepted steps, and how often.
+    /// What held the accepted steps (a cap, else the controlled variable that came closest to its
+    /// limit; [`StepController::proposal`]), and how often.
     pub(super) step_limited_by: BTreeMap<String, u64>,
     /// Simulated time of the accepted steps in which the line's exit was choked, s.
     pub(super) exit_choked_s: f64,
@@ -124,19 +134,45 @@ impl StepController {
     /// step and the Courant limit (for accuracy), ending at most at `target` (landing exactly on
     /// it); at least the case's smallest step where `target` is already reached.
     pub fn propose(&self, s: &State, grid: &Grid, target: f64) -> f64 {
-        let mut courant = f64::INFINITY;
+        self.proposal(s, grid, target).0
+    }
+
+    /// [`StepController::propose`]'s step with what set it where that was a cap, not the
+    /// controller's own step size: the case's largest step ([`LARGEST_STEP`]), the Courant limit
+    /// ([`COURANT_LIMIT`], with its junction) or the end of the interval ([`END_OF_INTERVAL`]).
+    ///
+    /// Decision: an accepted step is counted as held by what capped it (the summary's
+    /// `step_limited_by`, the step log), not by the controlled variable nearest its limit: after
+    /// the saturated NBS runs' chilldown every step sat at the case's largest step of 0.5 s and
+    /// was counted as held by the volume error (1 301 of 1 360 on the 2.5 atm run), which made
+    /// the volume error look as if it held three quarters of the run's steps.
+    pub fn proposal(&self, s: &State, grid: &Grid, target: f64) -> (f64, Option<(&'static str, usize)>) {
+        let mut courant = (f64::INFINITY, 0);
         for j in 0..=grid.n {
             for v in [s.v_g[j], s.v_l[j]] {
                 if v != 0.0 {
-                    courant = courant.min(self.max_courant * donor_length(grid, j, v) / v.abs());
+                    let limit = self.max_courant * donor_length(grid, j, v) / v.abs();
+                    if limit < courant.0 {
+                        courant = (limit, j);
+                    }
                 }
             }
         }
-        let mut h = self.dt.min(self.max_dt).min(courant).min(target - s.time);
+        let own = self.dt.min(self.max_dt);
+        let h = own.min(courant.0).min(target - s.time);
         if h <= 0.0 {
-            h = (target - s.time).max(self.min_dt);
+            return ((target - s.time).max(self.min_dt), Some((END_OF_INTERVAL, 0)));
         }
-        h
+        let cap = if h == target - s.time && h < own.min(courant.0) {
+            Some((END_OF_INTERVAL, 0))
+        } else if h == courant.0 && courant.0 < own {
+            Some((COURANT_LIMIT, courant.1))
+        } else if h == self.max_dt {
+            Some((LARGEST_STEP, 0))
+        } else {
+            None
+        };
+        (h, cap)
     }
 
     /// Books an accepted step of size `h` with its `report`: grows the step size after
@@ -271,6 +307,28 @@ mod tests {
         assert_eq!(c.propose(&state(2, 3.0, -8.0), &grid, 1e9), 2.0 * dx / 8.0);
         // at rest only the controller's step and the target
         assert_eq!(c.propose(&state(2, 0.0, 0.0), &grid, 7.0), 7.0);
+    }
+
+    #[test]
+    fn a_capped_step_names_its_cap() {
+        let case = crate::reference::Reference::GasCooldown.with_cells(4);
+        let grid = Grid::from_case(&case);
+        let dx = grid.dx[0];
+        let mut t = time();
+        (t.max_dt_s, t.max_courant) = (0.5, 2.0);
+        let mut s = State { v_g: vec![0.0; grid.n + 1], v_l: vec![0.0; grid.n + 1], ..State::default() };
+        // the controller's own step, below every cap: no cap
+        let c = StepController { dt: 0.1, ..StepController::new(StepControl::default(), &t) };
+        assert_eq!(c.proposal(&s, &grid, 1e9), (0.1, None));
+        // grown to the case's largest step
+        let c = StepController { dt: 0.5, ..StepController::new(StepControl::default(), &t) };
+        assert_eq!(c.proposal(&s, &grid, 1e9), (0.5, Some((LARGEST_STEP, 0))));
+        // the Courant limit below it, at the junction of the fastest flow
+        s.v_g[2] = 8.0 * dx;
+        assert_eq!(c.proposal(&s, &grid, 1e9), (2.0 * dx / s.v_g[2], Some((COURANT_LIMIT, 2))));
+        // the end of the interval below both
+        s.v_g[2] = 0.0;
+        assert_eq!(c.proposal(&s, &grid, 0.2), (0.2, Some((END_OF_INTERVAL, 0))));
     }
 
     #[test]

@@ -145,7 +145,9 @@ pub struct Summary {
     pub exported_heat_j: f64,
     /// Why steps were rejected: "variable: reason" and how often (to see what makes a run slow).
     pub rejection_causes: BTreeMap<String, u64>,
-    /// Which controlled variable came closest to its limit in accepted steps, and how often.
+    /// What held the accepted steps, and how often: the cap that set a step where one did (the
+    /// case's largest step, the Courant limit, the end of the interval), else the controlled
+    /// variable that came closest to its limit.
     pub step_limited_by: BTreeMap<String, u64>,
     /// Simulated time during which the line's exit was choked (the fluid leaving at the speed
     /// of sound of its mixture, whatever the pressure beyond), s.
@@ -193,8 +195,9 @@ pub struct StepAttempt {
     pub dt_s: f64,
     /// Whether the scheme accepted the step (a rejected one is retried shorter from `time_s`).
     pub accepted: bool,
-    /// Accepted: the controlled variable that came closest to its limit. Rejected: the variable
-    /// that rejected the step.
+    /// Accepted: the cap that set the step where one did (the case's largest step, the Courant
+    /// limit, the end of the interval; [`StepController::proposal`]), else the controlled variable
+    /// that came closest to its limit. Rejected: the variable that rejected the step.
     pub variable: &'static str,
     /// The cell of `variable` (the junction, for a velocity).
     pub index: usize,
@@ -460,12 +463,17 @@ fn advance(
     boundaries: &Boundaries,
     log: &mut dyn FnMut(StepAttempt),
 ) -> Result<(State, f64, StepReport), SimError> {
-    let mut h = controller.propose(s, &scheme.grid, target);
+    let (mut h, mut cap) = controller.proposal(s, &scheme.grid, target);
     let b0 = boundaries.at(s.time)?;
     loop {
         let b1 = boundaries.at(s.time + h)?;
         match scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]]) {
-            Ok((next, report)) => {
+            Ok((next, mut report)) => {
+                // a step at a cap was held by the cap, not by a controlled variable
+                if let Some((what, index)) = cap {
+                    report.limiting = what;
+                    report.limiting_index = index;
+                }
                 log(StepAttempt::accepted(s.time, h, &report));
                 controller.accept(h, &report);
                 return Ok((next, h, report));
@@ -473,6 +481,7 @@ fn advance(
             Err(rejection) => {
                 log(StepAttempt::rejected(s.time, h, &rejection));
                 h = controller.reject(h, rejection, s.time)?;
+                cap = None;
             }
         }
     }
