@@ -25,9 +25,8 @@ impl Scheme<'_> {
         for i in 0..st.n {
             w.refilled[i] = false;
             // only a retried step's cell that the rejected step found over its limit may be
-            // refilled (`refill_wanted`): only there is what it held before kept
             // refilled (`refill_wanted`), and a cell the step before recovered as one mixture
-            // (`mixed_before`): only there is what it held before kept
+            // (`mixed_before`, `mixed_again_wanted`): only there is what it held before kept
             let before =
                 ((retry && w.volume_retry[i] > 0.0) || mixed_before(st, i)).then(|| Before::take(next, budget, i));
             self.recover_or_mix(st, w, next, budget, i)?;
