@@ -517,20 +517,19 @@ struct Work {
     /// See `storage`.
     residual: Vec<Vector4<f64>>,
     /// Per cell: the block-tridiagonal pressure system — sub-diagonal, diagonal and
-    /// super-diagonal 4×4 blocks, right-hand sides, solver scratch (`pressure_equation`,
-    /// `pressure_solve`).
+    /// super-diagonal 4×4 blocks, solver scratch (`pressure_equation`, `pressure_solve`; the
+    /// right-hand sides are in `x` until the solve).
     blo: Vec<Matrix4<f64>>,
     /// See `blo`.
     bdi: Vec<Matrix4<f64>>,
     /// See `blo`.
     bup: Vec<Matrix4<f64>>,
     /// See `blo`.
-    brhs: Vec<Vector4<f64>>,
-    /// See `blo`.
     bscr: Vec<Matrix4<f64>>,
     /// Per cell: the linearised sources at the old state (`old_time_sources`).
     sources: Vec<Sources>,
-    /// Per cell: the step-1 unknowns (δp, δα, δT_g, δT_l) (`pressure_solve`).
+    /// Per cell: the step-1 unknowns (δp, δα, δT_g, δT_l) (`pressure_solve`; before it, the
+    /// pressure equation's right-hand sides, `pressure_equation`).
     x: Vec<Vector4<f64>>,
 }
 
@@ -554,7 +553,6 @@ fn resize(w: &mut Work, n: usize) {
         v.resize(n, Matrix4::zeros());
     }
     w.residual.resize(n, Vector4::zeros());
-    w.brhs.resize(n, Vector4::zeros());
     w.sources.resize(n, Sources::default());
     w.wetted.resize(n, 0.0);
     for v in [

@@ -15,7 +15,7 @@ impl Scheme<'_> {
     /// Step 1c, the pressure equation: each cell's linearised gas mass, liquid mass, gas energy
     /// and liquid energy equations in its unknowns x = (δp, δα, δT_g, δT_l) and its neighbours'
     /// ([`Scheme::cell_system`]), one row of 4×4 blocks of a block-tridiagonal system (`w.blo`,
-    /// `w.bdi`, `w.bup`, `w.brhs`).
+    /// `w.bdi`, `w.bup`, the right-hand sides in `w.x`, which the solve turns into the unknowns).
     ///
     /// Each cell's storage terms, residuals and corrected share come first
     /// ([`Scheme::storage`]): the donor-cell fluxes take the donors' contents at the new time,
@@ -95,7 +95,7 @@ impl Scheme<'_> {
         w.blo[i] = sys.lower;
         w.bdi[i] = sys.diag;
         w.bup[i] = sys.upper;
-        w.brhs[i] = sys.rhs;
+        w.x[i] = sys.rhs;
     }
 
     /// The donor-cell fluxes through cell `i`'s left (j = i) and right (j = i + 1) junctions:
@@ -187,10 +187,9 @@ impl Scheme<'_> {
     /// known) for every cell's unknowns (δp, δα, δT_g, δT_l), into `w.x`.
     pub(super) fn pressure_solve(&self, st: &StepInput, w: &mut Work) -> Result<(), Rejection> {
         let n = st.n;
-        if !linalg::block_tridiagonal(&w.blo[..n], &w.bdi[..n], &w.bup[..n], &mut w.brhs[..n], &mut w.bscr[..n]) {
+        if !linalg::block_tridiagonal(&w.blo[..n], &w.bdi[..n], &w.bup[..n], &mut w.x[..n], &mut w.bscr[..n]) {
             return Err(Rejection { cell: 0, variable: "pressure", value: st.dt, reason: "pressure system singular" });
         }
-        w.x[..n].copy_from_slice(&w.brhs[..n]);
         Ok(())
     }
 

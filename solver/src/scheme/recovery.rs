@@ -155,7 +155,7 @@ impl Scheme<'_> {
             before.restore(next, budget, i);
             w.x[i][0] = p - st.s.p[i];
             let again = self.recover_or_mix(st, w, next, budget, i);
-            if again.is_ok() && (!w.reset[i] || only_a_trace(next, i)) && !w.merged[i] && !w.mixture[i] {
+            if again.is_ok() && refillable(w, next, i) {
                 w.refilled[i] = true;
                 return Ok(());
             }

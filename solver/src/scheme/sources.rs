@@ -241,8 +241,9 @@ impl Scheme<'_> {
         } else {
             (Lin::constant(1.0), mass_limit(rate, s.m_g[i], dt))
         };
-        let subcooling_change = ts.sub(tg).sub(Lin::constant(subcooling));
-        let q_ig = ts.sub(tg).scale(h_ig).add(subcooling_change.scale(subcooled_slope)).scale(f).mul(share);
+        let gas_subcooling = ts.sub(tg);
+        let subcooling_change = gas_subcooling.sub(Lin::constant(subcooling));
+        let q_ig = gas_subcooling.scale(h_ig).add(subcooling_change.scale(subcooled_slope)).scale(f).mul(share);
         let q_il = ts.sub(tl).scale(f * h_il).mul(share);
         // (h*: RELAP5's switch — vapour forms at saturation from liquid at its own enthalpy,
         // condenses from vapour at its own enthalpy into saturated liquid)
