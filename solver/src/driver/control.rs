@@ -132,14 +132,10 @@ impl StepController {
 
     /// The step to try from `s` on `grid`: the controller's step size within the case's largest
     /// step and the Courant limit (for accuracy), ending at most at `target` (landing exactly on
-    /// it); at least the case's smallest step where `target` is already reached.
-    pub fn propose(&self, s: &State, grid: &Grid, target: f64) -> f64 {
-        self.proposal(s, grid, target).0
-    }
-
-    /// [`StepController::propose`]'s step with what set it where that was a cap, not the
-    /// controller's own step size: the case's largest step ([`LARGEST_STEP`]), the Courant limit
-    /// ([`COURANT_LIMIT`], with its junction) or the end of the interval ([`END_OF_INTERVAL`]).
+    /// it); at least the case's smallest step where `target` is already reached. With it, what
+    /// set it where that was a cap, not the controller's own step size: the case's largest step
+    /// ([`LARGEST_STEP`]), the Courant limit ([`COURANT_LIMIT`], with its junction) or the end of
+    /// the interval ([`END_OF_INTERVAL`]).
     ///
     /// Decision: an accepted step is counted as held by what capped it (the summary's
     /// `step_limited_by`, the step log), not by the controlled variable nearest its limit: after
@@ -159,11 +155,12 @@ impl StepController {
             }
         }
         let own = self.dt.min(self.max_dt);
-        let h = own.min(courant.0).min(target - s.time);
+        let limited = own.min(courant.0);
+        let h = limited.min(target - s.time);
         if h <= 0.0 {
             return ((target - s.time).max(self.min_dt), Some((END_OF_INTERVAL, 0)));
         }
-        let cap = if h == target - s.time && h < own.min(courant.0) {
+        let cap = if h == target - s.time && h < limited {
             Some((END_OF_INTERVAL, 0))
         } else if h == courant.0 && courant.0 < own {
             Some((COURANT_LIMIT, courant.1))
@@ -284,14 +281,21 @@ mod tests {
         assert_eq!(stats.step_limited_by["pressure"], 4);
     }
 
-    #[test]
-    fn the_courant_limit_is_measured_on_the_cell_the_flow_empties_or_fills() {
-        let case = crate::reference::Reference::GasCooldown.with_cells(4);
-        let grid = Grid::from_case(&case);
+    /// A line of four equal cells, its cell length and time settings with the largest step
+    /// `max_dt` and a Courant limit of 2.
+    fn four_cells(max_dt: f64) -> (Grid, f64, TimeSection) {
+        let grid = Grid::from_case(&crate::reference::Reference::GasCooldown.with_cells(4));
         let dx = grid.dx[0];
         let mut t = time();
-        (t.max_dt_s, t.max_courant) = (1e3, 2.0);
+        (t.max_dt_s, t.max_courant) = (max_dt, 2.0);
+        (grid, dx, t)
+    }
+
+    #[test]
+    fn the_courant_limit_is_measured_on_the_cell_the_flow_empties_or_fills() {
+        let (grid, dx, t) = four_cells(1e3);
         let c = StepController { dt: 1e3, ..StepController::new(StepControl::default(), &t) };
+        let propose = |s: &State, target: f64| c.proposal(s, &grid, target).0;
         let state = |j: usize, v_g: f64, v_l: f64| {
             let mut s = State { v_g: vec![0.0; grid.n + 1], v_l: vec![0.0; grid.n + 1], ..State::default() };
             (s.v_g[j], s.v_l[j]) = (v_g, v_l);
@@ -299,23 +303,19 @@ mod tests {
         };
         // the exit's outflow empties the last cell, a whole cell, not the half of the junction's
         // momentum volume
-        assert_eq!(c.propose(&state(grid.n, 10.0, 0.0), &grid, 1e9), 2.0 * dx / 10.0);
+        assert_eq!(propose(&state(grid.n, 10.0, 0.0), 1e9), 2.0 * dx / 10.0);
         // an inflow fills the first cell; a backflow at the exit fills the last one
-        assert_eq!(c.propose(&state(0, 0.0, 5.0), &grid, 1e9), 2.0 * dx / 5.0);
-        assert_eq!(c.propose(&state(grid.n, -4.0, 1.0), &grid, 1e9), 2.0 * dx / 4.0);
+        assert_eq!(propose(&state(0, 0.0, 5.0), 1e9), 2.0 * dx / 5.0);
+        assert_eq!(propose(&state(grid.n, -4.0, 1.0), 1e9), 2.0 * dx / 4.0);
         // inside the line the faster phase sets it
-        assert_eq!(c.propose(&state(2, 3.0, -8.0), &grid, 1e9), 2.0 * dx / 8.0);
+        assert_eq!(propose(&state(2, 3.0, -8.0), 1e9), 2.0 * dx / 8.0);
         // at rest only the controller's step and the target
-        assert_eq!(c.propose(&state(2, 0.0, 0.0), &grid, 7.0), 7.0);
+        assert_eq!(propose(&state(2, 0.0, 0.0), 7.0), 7.0);
     }
 
     #[test]
     fn a_capped_step_names_its_cap() {
-        let case = crate::reference::Reference::GasCooldown.with_cells(4);
-        let grid = Grid::from_case(&case);
-        let dx = grid.dx[0];
-        let mut t = time();
-        (t.max_dt_s, t.max_courant) = (0.5, 2.0);
+        let (grid, dx, t) = four_cells(0.5);
         let mut s = State { v_g: vec![0.0; grid.n + 1], v_l: vec![0.0; grid.n + 1], ..State::default() };
         // the controller's own step, below every cap: no cap
         let c = StepController { dt: 0.1, ..StepController::new(StepControl::default(), &t) };
