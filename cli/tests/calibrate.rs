@@ -118,12 +118,17 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
         assert!((cmaes - truth).abs() < tolerance, "{name}: CMA-ES found {cmaes}, truth {truth} (sd {sd})");
         assert!(lo <= truth && truth <= hi, "{name}: truth {truth} outside [{lo}, {hi}] (best {best})");
     }
-    // 150 + 40: the variance stage's last evaluation is at its response surface's minimum, which
-    // it takes as the estimate (the stage says so)
-    assert_eq!(result["evaluations"].as_u64().unwrap(), 190);
-    assert!(stdout.contains("response surface minimum taken as the estimate"), "{stdout}");
+    // 150 + 40 where the variance stage's last evaluation is at its response surface's minimum,
+    // which it then takes as the estimate; 150 + 39 where that minimum lies outside the
+    // evaluations the surface was fitted to and is not used. The stage says which; where the
+    // cost's jitter falls decides it (with a part-open valve's heat booked on its open area,
+    // the second)
+    let surface_used = stdout.contains("response surface minimum taken as the estimate");
+    assert!(surface_used || stdout.contains("response surface minimum not used"), "{stdout}");
+    let expected: u64 = if surface_used { 190 } else { 189 };
+    assert_eq!(result["evaluations"].as_u64().unwrap(), expected);
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
-    assert_eq!(evaluations.lines().count(), 191);
+    assert_eq!(evaluations.lines().count() as u64, expected + 1);
     assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes

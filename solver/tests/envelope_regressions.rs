@@ -483,3 +483,21 @@ fn a_surge_compresses_the_gas_past_350_k_inside_the_tables() {
     assert!(hottest > 350.0, "the gas reached only {hottest} K");
     assert!(fluids::embedded("parahydrogen").unwrap().constants().t_max_k >= 500.0);
 }
+
+/// Para-hydrogen gas at 290 K entering the NBS line at 11 atm through its inlet valve, which
+/// opens over 2 s, with every closure off (no heat, phase change, drag, friction, virtual mass
+/// or gravity): only the valve's form loss turns flow work into heat. That heat was booked on
+/// the inlet junction's whole flow area, while the flow moves through the valve's open part,
+/// 1/open times the work the loss did: 793 J of energy made in the first half second
+/// (`scheme::Scheme::junction_volume`). Now −0.3 J, with 159 J dissipated.
+#[test]
+fn a_part_open_valve_books_the_heat_its_loss_makes() {
+    let mut case = envelope_11atm("parahydrogen", 290.0, 0.5);
+    let p = &mut case.physics;
+    (p.wall_heat_transfer, p.phase_change, p.interphase_heat_transfer) = (false, false, false);
+    (p.interphase_drag, p.wall_friction, p.virtual_mass, p.gravity) = (false, false, false, false);
+    let s = run(&case, &ParameterSet::new()).summary;
+    assert!(s.simulated_time_s >= 0.5 - 1e-9);
+    assert!(s.dissipation_j > 100.0, "dissipated {} J", s.dissipation_j);
+    assert!(s.energy_balance_residual_j.abs() < 5.0, "energy residual {} J", s.energy_balance_residual_j);
+}

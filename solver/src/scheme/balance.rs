@@ -1,7 +1,7 @@
 //! The step's budget: its terms ([`StepBudget`]), the total-energy flux through the boundaries,
 //! and the sharing of the junctions' dissipated heat among the cells and phases.
 
-use super::{Scheme, boundary_conserved};
+use super::{Scheme, StepInput, boundary_conserved};
 use crate::case::BoundaryKind;
 use crate::model::{BoundaryState, GRAVITY, State};
 
@@ -95,8 +95,9 @@ impl Scheme<'_> {
 
     /// Cell `i`'s dissipation (W) split between gas and liquid in proportion to their heat
     /// capacities m_k c_p,k.
-    pub(super) fn dissipation_split(&self, s: &State, diss: &[f64], i: usize) -> (f64, f64) {
-        let total = self.dissipation_share(diss, i);
+    pub(super) fn dissipation_split(&self, st: &StepInput, diss: &[f64], i: usize) -> (f64, f64) {
+        let s = st.s;
+        let total = self.dissipation_share(st, diss, i);
         let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
         let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
         if cg + cl <= 0.0 {
@@ -108,11 +109,11 @@ impl Scheme<'_> {
 
     /// Dissipated power (W) that cell `i` receives from its two junctions: each junction's
     /// power per volume times its control volume, shared by the cells it lies in (a boundary
-    /// junction's control volume lies wholly in its one cell).
-    fn dissipation_share(&self, diss: &[f64], i: usize) -> f64 {
+    /// junction's control volume lies wholly in its one cell; [`Scheme::junction_volume`]).
+    fn dissipation_share(&self, st: &StepInput, diss: &[f64], i: usize) -> f64 {
         let g = &self.grid;
         let share = |j: usize| -> f64 {
-            let vol = g.area_junction[j] * g.dx_junction(j);
+            let vol = self.junction_volume(j, st.inlet1, st.outlet1);
             let inside = if j == 0 || j == g.n { 1.0 } else { 0.5 };
             inside * diss[j] * vol
         };

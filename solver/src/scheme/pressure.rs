@@ -78,7 +78,7 @@ impl Scheme<'_> {
             rhs: w.corrected[i] * w.residual[i],
         };
         // frictional dissipation (from the old velocities; step 2 adds the same heat)
-        let (heat_g, heat_l) = self.dissipation_split(s, &w.junction_heat, i);
+        let (heat_g, heat_l) = self.dissipation_split(st, &w.junction_heat, i);
         w.heat_g[i] = heat_g;
         w.heat_l[i] = heat_l;
         sys.rhs[2] += dt * heat_g / v;

@@ -37,7 +37,8 @@ impl Scheme<'_> {
             }
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
-            let (merged, reset, reset_volume, edge_mass) = (w.merged[c], w.reset[c], w.reset_volume[c], w.edge_mass[c]);
+            let (merged, reset, reset_volume) = (w.merged[c], w.reset[c], w.reset_volume[c]);
+            let (edge_mass, edge_gas_volume) = (w.edge_mass[c], w.edge_gas_volume[c]);
             self.recover_or_mix(st, w, next, budget, c)?;
             w.merged[c] |= merged;
             w.reset[c] |= reset;
@@ -45,6 +46,7 @@ impl Scheme<'_> {
             // still in the error, and its mass in the void fraction
             w.reset_volume[c] += reset_volume;
             w.edge_mass[c] += edge_mass;
+            w.edge_gas_volume[c] += edge_gas_volume;
         }
         for i in 0..st.n {
             if w.merged[i] && !w.mixture[i] && !w.refilled[i] && next.volume_error[i].abs() > MAX_VOLUME_ERROR {
@@ -225,6 +227,7 @@ impl Scheme<'_> {
             w.reset[i] = true;
             w.reset_volume[i] = next.volume_error[i];
             w.edge_mass[i] += merged.edge_mass;
+            w.edge_gas_volume[i] += merged.edge_gas_volume;
             w.refilled[i] = true;
         } else {
             merged.restore(next, w, budget, i);
@@ -319,6 +322,7 @@ impl Scheme<'_> {
         w.reset[i] = true;
         w.reset_volume[i] = next.volume_error[i];
         w.edge_mass[i] = 0.0;
+        w.edge_gas_volume[i] = 0.0;
         w.mixture[i] = true;
         Some(())
     }
@@ -379,6 +383,8 @@ impl Scheme<'_> {
             blend_max: self.physics.cryo.blend_max,
         };
         let (mut moved_to_g, mut moved_to_l) = (0.0, 0.0);
+        // the change of the gas's volume that the liquid flashed into it made
+        let mut flashed_volume = 0.0;
         // each phase from its own energy; one whose energy lies beyond its table's edge towards
         // the other phase changes phase there (`Recovery::edge_phase_change`)
         let (mut tg, mut gp, mut eg, reset_g) =
@@ -414,11 +420,13 @@ impl Scheme<'_> {
                         EdgeChange::Whole => (next.m_l[i], next.e_l[i]),
                         EdgeChange::Part { mass, energy, .. } => (mass, energy),
                     };
+                    let gas_volume = next.m_g[i] / gp.rho;
                     next.m_l[i] -= mass;
                     next.m_g[i] += mass;
                     moved_to_g = mass;
                     // the gas with the vapour that joined it, from its temperature as recovered
                     (tg, gp, eg, _) = cell.phase(Phase::Gas, next.m_g[i], eg + energy, tg, tl_guess, 0.0, budget)?;
+                    flashed_volume = next.m_g[i] / gp.rho - gas_volume;
                     match change {
                         EdgeChange::Whole => {
                             next.m_l[i] = 0.0;
@@ -452,6 +460,7 @@ impl Scheme<'_> {
         }
         w.reset_volume[i] = reset_volume;
         w.edge_mass[i] = moved_to_g - moved_to_l;
+        w.edge_gas_volume[i] = flashed_volume - moved_to_l / gp.rho;
         w.reset[i] = reset_g || reset_l;
         next.alpha[i] = ag / (ag + al);
         next.t_g[i] = tg;
@@ -514,6 +523,7 @@ struct MergedCell {
     reset: bool,
     reset_volume: f64,
     edge_mass: f64,
+    edge_gas_volume: f64,
     merged: bool,
     mixture: bool,
 }
@@ -533,6 +543,7 @@ impl MergedCell {
             reset: w.reset[i],
             reset_volume: w.reset_volume[i],
             edge_mass: w.edge_mass[i],
+            edge_gas_volume: w.edge_gas_volume[i],
             merged: w.merged[i],
             mixture: w.mixture[i],
         }
@@ -555,6 +566,7 @@ impl MergedCell {
         w.reset[i] = self.reset;
         w.reset_volume[i] = self.reset_volume;
         w.edge_mass[i] = self.edge_mass;
+        w.edge_gas_volume[i] = self.edge_gas_volume;
         w.merged[i] = self.merged;
         w.mixture[i] = self.mixture;
     }
