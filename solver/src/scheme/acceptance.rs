@@ -62,8 +62,8 @@ impl Scheme<'_> {
 }
 
 /// Cell `i`'s new void fraction without the volume its edge phase changes moved between the
-/// phases (the gas's change of volume, `w.edge_gas_volume`; the liquid's, the mass moved,
-/// `w.edge_mass`, at its new density); its new void fraction where there were none.
+/// phases (`w.edge`: the gas's change of volume, and the mass moved at the liquid's new
+/// density); its new void fraction where there were none.
 ///
 /// Decision: the void fraction's change control measures the step's change, not an edge phase
 /// change's. The phase tables' edges near the critical point are steps in the pressure (the
@@ -82,12 +82,12 @@ impl Scheme<'_> {
 /// mass at the new gas density put the step's own change at 0.293 → 0.207, and the 25 % rule
 /// rejected every step down to 1e-9 s.
 fn void_without_edge_change(w: &Work, next: &State, i: usize) -> f64 {
-    let moved = w.edge_mass[i];
+    let moved = w.edge[i].mass;
     if moved == 0.0 {
         return next.alpha[i];
     }
     let filled = 1.0 + next.volume_error[i];
-    let gas = next.alpha[i] * filled - w.edge_gas_volume[i];
+    let gas = next.alpha[i] * filled - w.edge[i].gas_volume;
     let liquid = (1.0 - next.alpha[i]) * filled + moved / next.liquid[i].rho;
     let alpha = gas / (gas + liquid);
     if alpha.is_finite() { alpha.clamp(0.0, 1.0) } else { next.alpha[i] }

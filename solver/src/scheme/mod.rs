@@ -466,13 +466,9 @@ struct Work {
     /// Per cell: the part of the new volume error that the cell's resets and edge phase
     /// changes made (`state_recovery`; see [`acceptance::volume_error_check`]).
     reset_volume: Vec<f64>,
-    /// Per cell: the mass the edge phase changes of its recovery moved to the gas (negative: to
-    /// the liquid), kg/m³ (`state_recovery`; its volume is not the step's change of the void
-    /// fraction, [`Scheme::change_control`]).
-    edge_mass: Vec<f64>,
-    /// Per cell: the change of the gas's volume fraction that the edge phase changes of its
-    /// recovery made (`state_recovery`; [`Scheme::change_control`]).
-    edge_gas_volume: Vec<f64>,
+    /// Per cell: what the edge phase changes of its recovery moved between the phases
+    /// (`state_recovery`; not the step's change of the void fraction, [`Scheme::change_control`]).
+    edge: Vec<EdgeMove>,
     /// Per cell: the fraction of the old volume error the pressure solve corrects
     /// (`pressure_equation`).
     corrected: Vec<f64>,
@@ -550,6 +546,24 @@ struct Work {
     x: Vec<Vector4<f64>>,
 }
 
+/// What a cell's edge phase changes moved between its phases in a step (`state_recovery`).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct EdgeMove {
+    /// The mass moved to the gas (negative: to the liquid), kg/m³.
+    mass: f64,
+    /// The change of the gas's volume fraction it made: for liquid flashed into the gas, the
+    /// change of the gas's volume that the flashed mass and energy made (the flash cools the
+    /// gas, [`acceptance::void_without_edge_change`]).
+    gas_volume: f64,
+}
+
+impl std::ops::AddAssign for EdgeMove {
+    fn add_assign(&mut self, other: Self) {
+        self.mass += other.mass;
+        self.gas_volume += other.gas_volume;
+    }
+}
+
 /// Sizes the work arrays for `n` cells (`n + 1` junctions).
 fn resize(w: &mut Work, n: usize) {
     let nj = n + 1;
@@ -584,12 +598,11 @@ fn resize(w: &mut Work, n: usize) {
         &mut w.sg_used,
         &mut w.sl_used,
         &mut w.reset_volume,
-        &mut w.edge_mass,
-        &mut w.edge_gas_volume,
         &mut w.corrected,
     ] {
         v.resize(n, 0.0);
     }
+    w.edge.resize(n, EdgeMove::default());
     w.reset.resize(n, false);
     w.merged.resize(n, false);
     w.mixture.resize(n, false);

@@ -3,8 +3,8 @@
 
 use super::mixture::{Mixture, NEAR_CRITICAL_FRACTION, NearCritical, table_edge};
 use super::{
-    MAX_VOLUME_ERROR, PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION, Work,
-    refill, saturation_or_none,
+    EdgeMove, MAX_VOLUME_ERROR, PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION,
+    Work, refill, saturation_or_none,
 };
 use crate::fluids::{FluidTable, Phase, PhaseProps};
 use crate::model::{State, clamp_to_range};
@@ -37,16 +37,14 @@ impl Scheme<'_> {
             }
         }
         for c in self.outflow_work_correction(st, w, next, budget).into_iter().flatten() {
-            let (merged, reset, reset_volume) = (w.merged[c], w.reset[c], w.reset_volume[c]);
-            let (edge_mass, edge_gas_volume) = (w.edge_mass[c], w.edge_gas_volume[c]);
+            let (merged, reset, reset_volume, edge) = (w.merged[c], w.reset[c], w.reset_volume[c], w.edge[c]);
             self.recover_or_mix(st, w, next, budget, c)?;
             w.merged[c] |= merged;
             w.reset[c] |= reset;
             // the first recovery's edge change already moved its mass: the volume it made is
             // still in the error, and its mass in the void fraction
             w.reset_volume[c] += reset_volume;
-            w.edge_mass[c] += edge_mass;
-            w.edge_gas_volume[c] += edge_gas_volume;
+            w.edge[c] += edge;
         }
         for i in 0..st.n {
             if w.merged[i] && !w.mixture[i] && !w.refilled[i] && next.volume_error[i].abs() > MAX_VOLUME_ERROR {
@@ -226,8 +224,7 @@ impl Scheme<'_> {
             w.merged[i] = true;
             w.reset[i] = true;
             w.reset_volume[i] = next.volume_error[i];
-            w.edge_mass[i] += merged.edge_mass;
-            w.edge_gas_volume[i] += merged.edge_gas_volume;
+            w.edge[i] += merged.edge;
             w.refilled[i] = true;
         } else {
             merged.restore(next, w, budget, i);
@@ -321,8 +318,7 @@ impl Scheme<'_> {
         w.merged[i] = true;
         w.reset[i] = true;
         w.reset_volume[i] = next.volume_error[i];
-        w.edge_mass[i] = 0.0;
-        w.edge_gas_volume[i] = 0.0;
+        w.edge[i] = EdgeMove::default();
         w.mixture[i] = true;
         Some(())
     }
@@ -459,8 +455,7 @@ impl Scheme<'_> {
             reset_volume += al - provisional_l;
         }
         w.reset_volume[i] = reset_volume;
-        w.edge_mass[i] = moved_to_g - moved_to_l;
-        w.edge_gas_volume[i] = flashed_volume - moved_to_l / gp.rho;
+        w.edge[i] = EdgeMove { mass: moved_to_g - moved_to_l, gas_volume: flashed_volume - moved_to_l / gp.rho };
         w.reset[i] = reset_g || reset_l;
         next.alpha[i] = ag / (ag + al);
         next.t_g[i] = tg;
@@ -522,8 +517,7 @@ struct MergedCell {
     x0: f64,
     reset: bool,
     reset_volume: f64,
-    edge_mass: f64,
-    edge_gas_volume: f64,
+    edge: EdgeMove,
     merged: bool,
     mixture: bool,
 }
@@ -542,8 +536,7 @@ impl MergedCell {
             x0: w.x[i][0],
             reset: w.reset[i],
             reset_volume: w.reset_volume[i],
-            edge_mass: w.edge_mass[i],
-            edge_gas_volume: w.edge_gas_volume[i],
+            edge: w.edge[i],
             merged: w.merged[i],
             mixture: w.mixture[i],
         }
@@ -565,8 +558,7 @@ impl MergedCell {
         w.x[i][0] = self.x0;
         w.reset[i] = self.reset;
         w.reset_volume[i] = self.reset_volume;
-        w.edge_mass[i] = self.edge_mass;
-        w.edge_gas_volume[i] = self.edge_gas_volume;
+        w.edge[i] = self.edge;
         w.merged[i] = self.merged;
         w.mixture[i] = self.mixture;
     }
