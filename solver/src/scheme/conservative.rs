@@ -204,7 +204,7 @@ impl Scheme<'_> {
                 let v = g.volume[i];
                 let old = if gas { s.e_g[i] } else { s.e_l[i] };
                 let src = if gas { w.sg_used[i] } else { w.sl_used[i] };
-                // p^n [V Δα_k + Δt Σ(α̂_k v A)] with the new-time donor fractions of the mass
+                // p [V Δα_k + Δt Σ(α̂_k v A)] with the new-time donor fractions of the mass
                 // solve (α̂ = m^{n+1}/ρ̃, the volume the convected mass occupies). Decision: with
                 // old-time donors a phase that empties from a cell in one step (vapour swept out
                 // by liquid, a mist's last drops) was charged the flow work of a volume that no
@@ -217,7 +217,19 @@ impl Scheme<'_> {
                 };
                 let (own_g, own_l) = storage_volume_change(s, w, i);
                 let own = if gas { own_g } else { own_l };
-                let pw = -s.p[i] * (v * own + frac_flux(i + 1) - frac_flux(i)) - fix;
+                // Decision: the flow work of the volume that crosses the cell's faces is charged
+                // at the cell's new pressure, the one the momentum equations' pressure force
+                // acts with, so that the work the force gives the flow's kinetic energy is the
+                // work the internal energy pays (the boundary's side is the boundary's new
+                // pressure in the balance's fluxes too). At the old pressure each junction left
+                // its moved volume times the step's change of the pressure difference unpaid:
+                // in a surge, where a cell's pressure moves by megapascals within a step,
+                // energy was destroyed (para-hydrogen subcooled at 11 atm, `calibrated.toml`:
+                // −2.57 kJ in the first 4.5 s, −0.90 kJ now; BENCHMARKS.md, "The flow work at
+                // the new pressure"). The storage term's p dV stays at the old pressure: it
+                // sums to zero over the cell's phases (`storage_volume_change`).
+                let p_new = s.p[i] + w.x[i][0];
+                let pw = -s.p[i] * v * own - p_new * (frac_flux(i + 1) - frac_flux(i)) - fix;
                 pw_total += pw;
                 // dissipation of junction j (power per volume × junction volume) is shared by
                 // the cells it lies in; a boundary junction's volume lies in its one cell
