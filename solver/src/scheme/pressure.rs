@@ -119,6 +119,8 @@ impl Scheme<'_> {
                     }
                 };
                 // the flow work p α_k at the cell's old pressure and the donor's old fraction
+                // (step 2 charges the faces' flow work at the new pressure; linearising that
+                // here too took more steps: BENCHMARKS.md, "The flow work at the new pressure")
                 let p_work = s.p[i];
                 let rows = [(k, d.mass, d.mass_slope), (2 + k, d.energy + p_work * d.fraction, d.energy_slope)];
                 for (row, q, slope) in rows {
