@@ -2,7 +2,7 @@
 //! velocities and new-time donors, the heat and work they book, and the wall's energy.
 
 use super::momentum::{booked_heat, exported_heat, time_step_loss};
-use super::{Rejection, Scheme, StepBudget, StepInput, Work, boundary_conserved};
+use super::{Rejection, Scheme, StepBudget, StepInput, Work, boundary_conserved, new_pressure};
 use crate::fluids::{Phase, PhaseProps};
 use crate::linalg;
 use crate::model::{BoundaryState, State};
@@ -34,8 +34,8 @@ impl Scheme<'_> {
                 let gamma = w.gamma_used[i];
                 w.d[i] = v * old + v * dt * if gas { gamma } else { -gamma };
             }
-            let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
-            let an = g.area_junction[n] * self.open_fraction(n, inlet1, outlet1);
+            let a0 = self.flow_area(0, inlet1, outlet1);
+            let an = self.flow_area(n, inlet1, outlet1);
             if vel[0] > 0.0 {
                 w.d[0] += dt * vel[0] * a0 * in_m;
             }
@@ -142,16 +142,15 @@ impl Scheme<'_> {
     /// kinetic plus internal energy is conserved. Without it the flashing outflow of the
     /// saturated 2.5 atm run (void rising downstream) created 4.7 W after its chilldown.
     pub(super) fn work_consistency(&self, st: &StepInput, w: &mut Work, next: &State) {
-        let (g, s, dt, n) = (&self.grid, st.s, st.dt, st.n);
+        let (s, dt, n) = (st.s, st.dt, st.n);
         let (inlet1, outlet1) = (st.inlet1, st.outlet1);
         let mut fix = std::mem::take(&mut w.work_fix);
         fix.iter_mut().for_each(|f| *f = 0.0);
         for j in 0..n + 1 {
             let Some((am_g, am_l)) = w.alpha_mom[j] else { continue };
-            let p_at = |i: usize| s.p[i] + w.x[i][0];
-            let p_left = if j == 0 { inlet1.p } else { p_at(j - 1) };
-            let p_right = if j == n { outlet1.p } else { p_at(j) };
-            let area = g.area_junction[j] * self.open_fraction(j, inlet1, outlet1);
+            let p_left = if j == 0 { inlet1.p } else { new_pressure(s, w, j - 1) };
+            let p_right = if j == n { outlet1.p } else { new_pressure(s, w, j) };
+            let area = self.flow_area(j, inlet1, outlet1);
             let mut excess = 0.0;
             for (gas, vel, a_mom, dvol) in [(true, &next.v_g, am_g, &w.dvol_g), (false, &next.v_l, am_l, &w.dvol_l)] {
                 let moved = self.flux_volume(s, dvol, gas, vel, j, dt, inlet1, outlet1);
@@ -193,8 +192,8 @@ impl Scheme<'_> {
             let (bin, bout) = (inlet1, outlet1);
             let (_, in_e, _) = boundary_conserved(bin, gas);
             let (_, out_e, _) = boundary_conserved(bout, gas);
-            let a0 = g.area_junction[0] * self.open_fraction(0, inlet1, outlet1);
-            let an = g.area_junction[n] * self.open_fraction(n, inlet1, outlet1);
+            let a0 = self.flow_area(0, inlet1, outlet1);
+            let an = self.flow_area(n, inlet1, outlet1);
             // energy
             let mut pw_total = 0.0;
             let mut dissipation = 0.0;
@@ -228,8 +227,7 @@ impl Scheme<'_> {
                 // −2.57 kJ in the first 4.5 s, −0.90 kJ now; BENCHMARKS.md, "The flow work at
                 // the new pressure"). The storage term's p dV stays at the old pressure: it
                 // sums to zero over the cell's phases (`storage_volume_change`).
-                let p_new = s.p[i] + w.x[i][0];
-                let pw = -s.p[i] * v * own - p_new * (frac_flux(i + 1) - frac_flux(i)) - fix;
+                let pw = -s.p[i] * v * own - new_pressure(s, w, i) * (frac_flux(i + 1) - frac_flux(i)) - fix;
                 pw_total += pw;
                 // dissipation of junction j (power per volume × junction volume) is shared by
                 // the cells it lies in; a boundary junction's volume lies in its one cell
@@ -290,8 +288,8 @@ impl Scheme<'_> {
         let g = &self.grid;
         for i in 0..g.n {
             let (jl, jr) = (i, i + 1);
-            let al = g.area_junction[jl] * self.open_fraction(jl, inlet, outlet);
-            let ar = g.area_junction[jr] * self.open_fraction(jr, inlet, outlet);
+            let al = self.flow_area(jl, inlet, outlet);
+            let ar = self.flow_area(jr, inlet, outlet);
             let (vl, vr) = (vel[jl], vel[jr]);
             w.b[i] = g.volume[i] + self.cell_outflow(vel, i, dt, inlet, outlet);
             w.a[i] = -dt * vl.max(0.0) * al;
@@ -309,10 +307,9 @@ impl Scheme<'_> {
         inlet: &BoundaryState,
         outlet: &BoundaryState,
     ) -> f64 {
-        let g = &self.grid;
         let (jl, jr) = (i, i + 1);
-        let al = g.area_junction[jl] * self.open_fraction(jl, inlet, outlet);
-        let ar = g.area_junction[jr] * self.open_fraction(jr, inlet, outlet);
+        let al = self.flow_area(jl, inlet, outlet);
+        let ar = self.flow_area(jr, inlet, outlet);
         dt * (vel[jr].max(0.0) * ar - vel[jl].min(0.0) * al)
     }
 
@@ -333,7 +330,7 @@ impl Scheme<'_> {
     ) -> f64 {
         let g = &self.grid;
         let n = g.n;
-        let area = g.area_junction[j] * self.open_fraction(j, inlet, outlet);
+        let area = self.flow_area(j, inlet, outlet);
         let upstream = if vel[j] >= 0.0 { j.checked_sub(1) } else { (j < n).then_some(j) };
         let frac = match upstream {
             Some(c) => (if gas { s.alpha[c] } else { 1.0 - s.alpha[c] }) + dvol[c],

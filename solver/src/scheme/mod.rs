@@ -349,6 +349,12 @@ impl<'a> Scheme<'a> {
         }
     }
 
+    /// Junction `j`'s flow area, m²: its area times the open fraction (a boundary valve's open
+    /// part at the ends), the area its fluxes and its velocities go through.
+    fn flow_area(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
+        self.grid.area_junction[j] * self.open_fraction(j, inlet, outlet)
+    }
+
     /// The volume of junction `j`'s momentum control volume in which the fluid moves at the
     /// junction's velocities, m³: its flow area (a boundary valve's open part) times its length.
     ///
@@ -360,7 +366,7 @@ impl<'a> Scheme<'a> {
     /// 2 s opening made 587 J of energy in its first second, 793 J in half a second with gas
     /// entering and every closure off (BENCHMARKS.md, "The heat of a part-open valve's loss").
     fn junction_volume(&self, j: usize, inlet: &BoundaryState, outlet: &BoundaryState) -> f64 {
-        self.grid.area_junction[j] * self.open_fraction(j, inlet, outlet) * self.grid.dx_junction(j)
+        self.flow_area(j, inlet, outlet) * self.grid.dx_junction(j)
     }
 }
 
@@ -562,6 +568,13 @@ impl std::ops::AddAssign for EdgeMove {
         self.mass += other.mass;
         self.gas_volume += other.gas_volume;
     }
+}
+
+/// Cell `i`'s new pressure as step 1 solved it (the old pressure plus its change `w.x[i][0]`):
+/// the pressure the new velocities were solved with, and the one step 2 charges the faces' flow
+/// work at.
+fn new_pressure(s: &State, w: &Work, i: usize) -> f64 {
+    s.p[i] + w.x[i][0]
 }
 
 /// Sizes the work arrays for `n` cells (`n + 1` junctions).

@@ -106,7 +106,7 @@ impl Scheme<'_> {
         let (g, s, n) = (&self.grid, st.s, st.n);
         let v = g.volume[i];
         for (j, side) in [(i, -1.0), (i + 1, 1.0)] {
-            let area = g.area_junction[j] * self.open_fraction(j, st.inlet1, st.outlet1);
+            let area = self.flow_area(j, st.inlet1, st.outlet1);
             let f = st.dt * area / v;
             for (k, (vt, wj)) in [(w.vt_g[j], w.w_g[j]), (w.vt_l[j], w.w_l[j])].into_iter().enumerate() {
                 // the donor: the cell upstream of the provisional velocity, or a boundary

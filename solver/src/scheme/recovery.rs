@@ -4,7 +4,7 @@
 use super::mixture::{Mixture, NEAR_CRITICAL_FRACTION, NearCritical, table_edge};
 use super::{
     EdgeMove, MAX_VOLUME_ERROR, PRESENT_MASS_FRACTION, Rejection, Scheme, StepBudget, StepInput, TRACE_RESET_FRACTION,
-    Work, refill, saturation_or_none,
+    Work, new_pressure, refill, saturation_or_none,
 };
 use crate::fluids::{FluidTable, Phase, PhaseProps};
 use crate::model::{State, clamp_to_range};
@@ -81,7 +81,7 @@ impl Scheme<'_> {
         let (g, s, dt, n) = (&self.grid, st.s, st.dt, st.n);
         let mut corrected = [None; 2];
         for (k, (j, c, b, sign)) in [(0, 0, st.inlet1, -1.0), (n, n - 1, st.outlet1, 1.0)].into_iter().enumerate() {
-            let area = g.area_junction[j] * self.open_fraction(j, st.inlet1, st.outlet1);
+            let area = self.flow_area(j, st.inlet1, st.outlet1);
             let mut touched = false;
             for gas in [true, false] {
                 let v = if gas { next.v_g[j] } else { next.v_l[j] };
@@ -288,7 +288,7 @@ impl Scheme<'_> {
     ) -> Option<()> {
         let (fluid, s) = (self.fluid, st.s);
         let pc = fluid.constants().p_critical_pa;
-        let p = s.p[i] + w.x[i][0];
+        let p = new_pressure(s, w, i);
         let (bottom, top) = window.window();
         if !(p >= bottom * pc && p < top * pc) {
             return None;
@@ -335,7 +335,7 @@ impl Scheme<'_> {
         i: usize,
     ) -> Result<f64, Rejection> {
         let (s, fluid) = (st.s, self.fluid);
-        let p = s.p[i] + w.x[i][0];
+        let p = new_pressure(s, w, i);
         if !(p.is_finite() && p > 0.0) {
             return Err(Rejection { cell: i, variable: "pressure", value: p, reason: "non-physical pressure" });
         }
