@@ -47,8 +47,9 @@
 //! | `pressure_solve` | `pressure.rs` | step 1d: its solve for every cell's unknowns |
 //! | `velocity_update` | `pressure.rs` | the new velocities |
 //! | `exit_choke` | `choking.rs` | a choked exit: step 1 again with the exit's resistance |
-//! | `provisional_sources` | `sources.rs` | sources at the provisional state, phase change limited |
+//! | `provisional_sources` | `sources.rs` | sources at the provisional state |
 //! | `mass_update` | `conservative.rs` | step 2: conservative phasic masses |
+//! | `mark_limited` | `sources.rs` | cells whose phase change took nearly all of a phase: their sources limited, the masses solved again |
 //! | `dissipated_heat` | `conservative.rs` | the momentum forces' heat with the new velocities |
 //! | `phase_volume_changes` | `conservative.rs` | each phase's volume change (its p dV work) |
 //! | `work_consistency` | `conservative.rs` | pressure work the flow work did not book |
@@ -287,8 +288,14 @@ impl<'a> Scheme<'a> {
         let st = &choked;
         // step 2: the conservative masses and energies with the new velocities
         let mut budget = StepBudget::default();
+        w.limited.fill(false);
         self.provisional_sources(st, w);
         self.mass_update(st, w, &next, &mut budget)?;
+        if self.mark_limited(st, w) {
+            budget = StepBudget::default();
+            self.provisional_sources(st, w);
+            self.mass_update(st, w, &next, &mut budget)?;
+        }
         next.boundary_mass_flow = [budget.mass_in / st.dt, budget.mass_out / st.dt];
         self.dissipated_heat(st, w, &next);
         self.phase_volume_changes(st, w);
@@ -460,12 +467,16 @@ struct Work {
     /// See `dvol_g`.
     dvol_l: Vec<f64>,
     /// Per cell: the vapour generation and the gas and liquid energy sources at the
-    /// provisional state, the phase change limited (`provisional_sources`).
+    /// provisional state, the phase change of the cells in `limited` limited
+    /// (`provisional_sources`).
     gamma_used: Vec<f64>,
     /// See `gamma_used`.
     sg_used: Vec<f64>,
     /// See `gamma_used`.
     sl_used: Vec<f64>,
+    /// Per cell: whether its phase change is limited by the phase it held at the old time
+    /// (`mark_limited`).
+    limited: Vec<bool>,
     /// Per cell: whether a phase's temperature was reset or a phase changed at its table's
     /// edge (`state_recovery`).
     reset: Vec<bool>,
@@ -617,6 +628,7 @@ fn resize(w: &mut Work, n: usize) {
     }
     w.edge.resize(n, EdgeMove::default());
     w.reset.resize(n, false);
+    w.limited.resize(n, false);
     w.merged.resize(n, false);
     w.mixture.resize(n, false);
     w.refilled.resize(n, false);
