@@ -54,13 +54,18 @@ const STATIONS: [&str; 4] = ["TS1", "TS2", "TS3", "TS4"];
 /// it would be a numerical liquid hammer, not a surge.
 const SURGE_LIMIT: f64 = 3.0;
 
+/// The case `examples/nbs/{stem}.toml` as shipped.
+fn shipped_case(stem: &str) -> Case {
+    let path = format!("{NBS}/{stem}.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"))
+}
+
 #[test]
 fn default_closures_chill_the_nbs_line_down_in_order_and_near_the_data() {
     let fluid = fluids::embedded("nitrogen").unwrap();
     for (stem, measured) in RUNS {
-        let path = format!("{NBS}/{stem}.toml");
-        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-        let case = Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+        let case = shipped_case(stem);
         assert_eq!(case.pipe.cells, 30, "{stem}: the shipped case has 30 cells");
         assert_eq!(case.time.end_s, 1000.0, "{stem}: the shipped case runs 1000 s");
         let params = driver::case_parameters(&case).unwrap();
@@ -122,9 +127,7 @@ fn default_closures_chill_the_nbs_line_down_in_order_and_near_the_data() {
 fn evaporating_mist_keeps_the_energy_balance_at_the_default_step() {
     let fluid = fluids::embedded("nitrogen").unwrap();
     for (stem, _) in RUNS {
-        let path = format!("{NBS}/{stem}.toml");
-        let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-        let case = Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+        let case = shipped_case(stem);
         let params = driver::case_parameters(&case).unwrap();
         let s = driver::run(&case, fluid, &params, &mut |_| {}).unwrap_or_else(|e| panic!("{stem}: {e}")).summary;
         let residual = s.energy_balance_residual_j;
@@ -134,9 +137,7 @@ fn evaporating_mist_keeps_the_energy_balance_at_the_default_step() {
 
 /// The shipped case `stem` with the registry defaults and `blend_xmax` = `blend`.
 fn run_with_blend(stem: &str, blend: f64) -> cryofit_solver::driver::Output {
-    let path = format!("{NBS}/{stem}.toml");
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let case = Case::from_toml(&text, &path).unwrap_or_else(|e| panic!("{e}"));
+    let case = shipped_case(stem);
     let mut params = driver::case_parameters(&case).unwrap();
     params.set("blend_xmax", blend).unwrap();
     driver::run(&case, fluids::embedded("nitrogen").unwrap(), &params, &mut |_| {})
