@@ -80,7 +80,7 @@ use crate::cryo;
 use crate::fluids::{FluidTable, Saturation};
 use crate::model::{BoundaryState, Grid, State};
 
-use acceptance::{all_finite, volume_error_check};
+use acceptance::{RetryRecord, all_finite, volume_error_check};
 pub use balance::StepBudget;
 use choking::MAX_CHOKE_PASSES;
 pub use choking::two_phase_critical_speed;
@@ -489,11 +489,12 @@ struct Work {
     /// Per cell: the fraction of the old volume error the pressure solve corrects
     /// (`pressure_equation`).
     corrected: Vec<f64>,
-    /// The start time of the last step rejected for its volume error
+    /// The volume errors of the last step rejected for them, for its retries
     /// ([`acceptance::volume_error_check`]).
-    volume_retry_time: f64,
-    /// Per cell: the volume error that rejected step made there (0 where within its limit).
-    volume_retry: Vec<f64>,
+    volume_retry: RetryRecord,
+    /// The pressure changes of the last step the change control rejected, for its retries
+    /// ([`Scheme::change_control`]).
+    pressure_retry: RetryRecord,
     /// Per cell: whether it was recovered as one near-critical mixture (`state_recovery`).
     mixture: Vec<bool>,
     /// Per cell: whether it was recovered again at the pressure at which its phases fill it
@@ -632,7 +633,8 @@ fn resize(w: &mut Work, n: usize) {
     w.merged.resize(n, false);
     w.mixture.resize(n, false);
     w.refilled.resize(n, false);
-    w.volume_retry.resize(n, 0.0);
+    w.volume_retry.resize(n);
+    w.pressure_retry.resize(n);
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);
     w.x.resize(n, Vector4::zeros());

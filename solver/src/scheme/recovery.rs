@@ -21,14 +21,13 @@ impl Scheme<'_> {
         next: &mut State,
         budget: &mut StepBudget,
     ) -> Result<f64, Rejection> {
-        let retry = w.volume_retry_time == st.s.time;
         for i in 0..st.n {
             w.refilled[i] = false;
             // only a retried step's cell that the rejected step found over its limit may be
             // refilled (`refill_wanted`), and a cell the step before recovered as one mixture
             // (`mixed_before`, `mixed_again_wanted`): only there is what it held before kept
-            let before =
-                ((retry && w.volume_retry[i] > 0.0) || mixed_before(st, i)).then(|| Before::take(next, budget, i));
+            let before = (w.volume_retry.over_before(st.s.time, i) || mixed_before(st, i))
+                .then(|| Before::take(next, budget, i));
             self.recover_or_mix(st, w, next, budget, i)?;
             if let Some(before) = before
                 && (refill_wanted(st, w, next, i) || mixed_again_wanted(st, w, next, i))
@@ -569,10 +568,7 @@ impl MergedCell {
 /// and the retry's is still above half of it (a shorter step did not shrink it), and the cell's
 /// recovery reset no phase (a reset's volume is not the linearisation's).
 fn refill_wanted(st: &StepInput, w: &Work, next: &State, i: usize) -> bool {
-    w.volume_retry_time == st.s.time
-        && w.volume_retry[i] > 0.0
-        && next.volume_error[i].abs() > 0.5 * w.volume_retry[i]
-        && refillable(w, next, i)
+    w.volume_retry.not_halved(st.s.time, i, next.volume_error[i]) && refillable(w, next, i)
 }
 
 /// Whether cell `i` was recovered as one near-critical mixture by the step that ended at the
