@@ -24,8 +24,9 @@ impl Scheme<'_> {
     }
 
     /// Sources at the provisional state, into `w.gamma_used`, `w.sg_used`, `w.sl_used`; the
-    /// phase change of a cell marked in `w.limited` held so that at most 90 % of the phase it
-    /// takes, as the cell held it at the old time, goes in one step.
+    /// phase change of a cell marked in `w.limited` held so that at most
+    /// `HELD_PHASE_CHANGE_FRACTION` of the phase it takes, as the cell held it at the old time,
+    /// goes in one step.
     ///
     /// The phase-change parts of the two energy sources add up to nothing, so the scaling
     /// keeps energy.
@@ -35,7 +36,8 @@ impl Scheme<'_> {
             let (src, x) = (&w.sources[i], &w.x[i]);
             let gam = src.gamma.eval(x);
             let (available, take) = if gam < 0.0 { (s.m_g[i], -gam * dt) } else { (s.m_l[i], gam * dt) };
-            let f = if w.limited[i] && take > 0.9 * available.max(0.0) { 0.9 * available.max(0.0) / take } else { 1.0 };
+            let most = HELD_PHASE_CHANGE_FRACTION * available.max(0.0);
+            let f = if w.limited[i] && take > most { most / take } else { 1.0 };
             w.gamma_used[i] = f * gam;
             w.sg_used[i] = src.s_g.eval(x) - (1.0 - f) * src.pc_g.eval(x);
             w.sl_used[i] = src.s_l.eval(x) - (1.0 - f) * src.pc_l.eval(x);
@@ -43,8 +45,9 @@ impl Scheme<'_> {
     }
 
     /// Marks in `w.limited` the cells whose phase change, as the mass solve just took it
-    /// (`w.gamma_used`, `w.mass_g`, `w.mass_l`), took more than 90 % of what the cell held of
-    /// the phase over the step (its new mass below a ninth of what changed phase); returns
+    /// (`w.gamma_used`, `w.mass_g`, `w.mass_l`), took more than `HELD_PHASE_CHANGE_FRACTION` of
+    /// what the cell held of the phase over the step (its new mass plus what changed phase);
+    /// returns
     /// whether there are any. Holding a cell's phase change leaves more of that phase to flow
     /// on downstream, so the masses solved again deplete no other cell.
     ///
@@ -65,7 +68,7 @@ impl Scheme<'_> {
         for i in 0..st.n {
             let gam = w.gamma_used[i];
             let (new, take) = if gam < 0.0 { (w.mass_g[i], -gam * st.dt) } else { (w.mass_l[i], gam * st.dt) };
-            if take > 0.0 && 9.0 * new < take {
+            if take > 0.0 && take > HELD_PHASE_CHANGE_FRACTION * (new + take) {
                 w.limited[i] = true;
                 any = true;
             }
@@ -491,6 +494,10 @@ pub(super) struct Sources {
 fn wall_evaporation_scale(gwsc: f64, superheat_k: f64) -> f64 {
     if gwsc <= 1.0 { gwsc } else { 1.0 + (gwsc - 1.0) * smooth_step(superheat_k / WALL_EVAPORATION_SUPERHEAT_K) }
 }
+
+/// The fraction of the phase it takes that a cell's phase change may take in one step where
+/// it would take more ([`Scheme::mark_limited`], [`Scheme::provisional_sources`]).
+const HELD_PHASE_CHANGE_FRACTION: f64 = 0.9;
 
 /// Liquid superheat from which the wall's evaporation takes its full `Gwsc` above 1, K.
 const WALL_EVAPORATION_SUPERHEAT_K: f64 = 1.0;
