@@ -87,10 +87,7 @@ fn wall_evaporation_does_not_cool_subcooled_liquid_to_the_triple_point() {
 /// at 5 bar until it left its table.
 #[test]
 fn liquid_near_its_superheat_limit_flashes() {
-    let mut case = nbs("subcooled-4.2atm");
-    case.time.end_s = 8.0;
-    let out = run(&case, &params("robustness-seed1-sample31.toml"));
-    assert!(out.summary.simulated_time_s >= 8.0 - 1e-9);
+    subcooled_runs_to(8.0, "robustness-seed1-sample31.toml");
 }
 
 /// Vapour collapse pulled the inlet cell, nearly full of liquid, to 31 kPa with its liquid 13 K
@@ -99,10 +96,15 @@ fn liquid_near_its_superheat_limit_flashes() {
 /// its steps halved below 1e-9 s.
 #[test]
 fn a_flashing_pressure_recovery_is_not_held_by_the_change_control() {
+    subcooled_runs_to(80.0, "robustness-seed1-sample944.toml");
+}
+
+/// The NBS subcooled case with the parameter file `file` of `tests/data` runs to `end_s`.
+fn subcooled_runs_to(end_s: f64, file: &str) {
     let mut case = nbs("subcooled-4.2atm");
-    case.time.end_s = 80.0;
-    let out = run(&case, &params("robustness-seed1-sample944.toml"));
-    assert!(out.summary.simulated_time_s >= 80.0 - 1e-9);
+    case.time.end_s = end_s;
+    let out = run(&case, &params(file));
+    assert!(out.summary.simulated_time_s >= end_s - 1e-9);
 }
 
 /// The NBS line of the envelope: `fluid` at 11 atm over the local atmosphere (1 197 662 Pa),
