@@ -47,9 +47,8 @@ impl Scheme<'_> {
     /// Marks in `w.limited` the cells whose phase change, as the mass solve just took it
     /// (`w.gamma_used`, `w.mass_g`, `w.mass_l`), took more than `HELD_PHASE_CHANGE_FRACTION` of
     /// what the cell held of the phase over the step (its new mass plus what changed phase);
-    /// returns
-    /// whether there are any. Holding a cell's phase change leaves more of that phase to flow
-    /// on downstream, so the masses solved again deplete no other cell.
+    /// returns whether there are any. Holding a cell's phase change leaves more of that phase
+    /// to flow on downstream, so the masses solved again deplete no other cell.
     ///
     /// Decision: the phase change is limited only where it would take a vanishing phase
     /// (condensing vapour traces in subcooled liquid under a pressure rise, say), counted
