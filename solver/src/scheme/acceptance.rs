@@ -19,39 +19,37 @@ impl Scheme<'_> {
     /// at 11 atm ended at 2.9 s with its steps halved below 1e-9 s on a gas temperature that fell
     /// 42 K in any step).
     ///
-    /// A cell's pressure change that a step half as long does not at least halve is not the
-    /// step's either ([`RetryRecord`], as the volume error's in [`volume_error_check`]): a retry
-    /// from the same time whose pressure change in a cell is above half of the rejected step's
-    /// there (`w.pressure_retry`) is not rejected for it, and the cell enters the step control
-    /// at its limit, so that the next step is shorter. Decision: such a change is the recovery
-    /// of a state far from its equilibrium, which any step length makes. With one parameter set
-    /// of the robustness study (`tests/data/robustness-seed1-sample944.toml`) vapour collapse
-    /// pulled the subcooled nitrogen line's inlet cell, nearly full of liquid (void fraction
-    /// 2.9e-4), down to 30.9 kPa, its liquid at 79.2 K 13 K above saturation: the linearised
-    /// flashing (7.5e4 kg/m³/s, falling by 1.49 per Pa) ends near 81 kPa within nanoseconds. A
-    /// 29 µs step landed at 81.4 kPa, four halvings stayed within 0.3 % of it, the 25 % rule
-    /// rejected every step length and the run ended at 66.9 s.
+    /// A cell's change of pressure, void fraction or a phase's temperature that a step half as
+    /// long does not at least halve is not the step's either ([`RetryRecord`], as the volume
+    /// error's in [`volume_error_check`]): a retry from the same time whose change of such a
+    /// variable in a cell is above half of the rejected step's there (`w.cell_retry`) is not
+    /// rejected for it, and the cell enters the step control at its limit, so that the next
+    /// step is shorter. Decision: such a change is the recovery of a state far from its
+    /// equilibrium or a jump of the state's recovery, which any step length makes. With one
+    /// parameter set of the robustness study (`tests/data/robustness-seed1-sample944.toml`)
+    /// vapour collapse pulled the subcooled nitrogen line's inlet cell, nearly full of liquid
+    /// (void fraction 2.9e-4), down to 30.9 kPa, its liquid at 79.2 K 13 K above saturation: the
+    /// linearised flashing (7.5e4 kg/m³/s, falling by 1.49 per Pa) ends near 81 kPa within
+    /// nanoseconds. A 29 µs step landed at 81.4 kPa, four halvings stayed within 0.3 % of it, the
+    /// 25 % rule rejected every step length and the run ended at 66.9 s. On the subcooled
+    /// para-hydrogen line at 11 atm on 25 cells (inlet at 19.619650779 K, defaults) a cell's
+    /// near-critical gas fell to 34.3 K in any step that crossed 15.857062 s, and the steps were
+    /// halved towards that instant until below 1e-9 s.
     pub(super) fn change_control(&self, st: &StepInput, w: &mut Work, next: &State) -> Result<ChangeRatio, Rejection> {
         let s = st.s;
         let mut change = ChangeRatio { ratio: 0.0, worst: Rejection { cell: 0, variable: "", value: 0.0, reason: "" } };
-        // a phase's temperature and velocity are controlled only where it fills at least
-        // CONTROLLED_FRACTION of the volume (a fixed fraction, not `blend_xmax`: the step sizes,
-        // and through them the results, would otherwise move with a blending threshold)
-        let xmax = CONTROLLED_FRACTION;
         for i in 0..st.n {
-            let held = w.pressure_retry.not_halved(s.time, i, next.p[i] - s.p[i]);
-            change.check_held(i, "pressure", s.p[i], next.p[i], SCALE_PRESSURE_PA, held);
-            if !w.merged[i] {
-                change.check(i, "void fraction", s.alpha[i], void_without_edge_change(w, next, i), SCALE_VOID);
-                if s.alpha[i].min(next.alpha[i]) > xmax {
-                    change.check(i, "gas temperature", s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K);
-                }
-                if (1.0 - s.alpha[i]).min(1.0 - next.alpha[i]) > xmax {
-                    change.check(i, "liquid temperature", s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K);
+            for (k, c) in cell_changes(s, w, next, i).into_iter().enumerate() {
+                if let Some(c) = c {
+                    let held = w.cell_retry[k].not_halved(s.time, i, c.new - c.old);
+                    change.check_held(i, CELL_VARIABLES[k], c.old, c.new, c.scale, held);
                 }
             }
             change.check(i, "wall temperature", s.t_w[i], next.t_w[i], SCALE_TEMPERATURE_K);
         }
+        // a phase's velocity is controlled only where it fills at least CONTROLLED_FRACTION of
+        // the junction (as its temperature in a cell, `cell_changes`)
+        let xmax = CONTROLLED_FRACTION;
         for j in 0..st.n + 1 {
             if j == st.n && st.choke > 0.0 {
                 // a choked exit's velocities follow the exit cell's state through the choking
@@ -69,13 +67,48 @@ impl Scheme<'_> {
             }
         }
         if change.ratio > 1.0 {
-            let over =
-                |i: usize| (relative_change(s.p[i], next.p[i], SCALE_PRESSURE_PA) > 1.0).then(|| next.p[i] - s.p[i]);
-            w.pressure_retry.record(s.time, over);
+            let changes: Vec<_> = (0..st.n).map(|i| cell_changes(s, w, next, i)).collect();
+            for (k, record) in w.cell_retry.iter_mut().enumerate() {
+                record.record(s.time, |i| {
+                    changes[i][k].filter(|c| relative_change(c.old, c.new, c.scale) > 1.0).map(|c| c.new - c.old)
+                });
+            }
             return Err(change.worst);
         }
         Ok(change)
     }
+}
+
+/// The controlled variables of a cell's state whose changes a retry may hold
+/// ([`Scheme::change_control`], `w.cell_retry`), in the order of [`cell_changes`].
+pub(super) const CELL_VARIABLES: [&str; 4] = ["pressure", "void fraction", "gas temperature", "liquid temperature"];
+
+/// A controlled variable's change over a step: old and new value and the scale below which its
+/// allowed change does not shrink.
+#[derive(Debug, Clone, Copy)]
+struct CellChange {
+    old: f64,
+    new: f64,
+    scale: f64,
+}
+
+/// Cell `i`'s changes of the variables of [`CELL_VARIABLES`] over the step to `next`, `None`
+/// where a variable is not controlled: the void fraction and temperatures of a cell where a
+/// whole phase went over to the other (`w.merged`, [`Scheme::change_control`]), and a phase's
+/// temperature where it fills less than `CONTROLLED_FRACTION` of the cell at either end of the
+/// step (a fixed fraction, not `blend_xmax`: the step sizes, and through them the results,
+/// would otherwise move with a blending threshold).
+fn cell_changes(s: &State, w: &Work, next: &State, i: usize) -> [Option<CellChange>; 4] {
+    let xmax = CONTROLLED_FRACTION;
+    let merged = w.merged[i];
+    let change = |old: f64, new: f64, scale: f64| CellChange { old, new, scale };
+    [
+        Some(change(s.p[i], next.p[i], SCALE_PRESSURE_PA)),
+        (!merged).then(|| change(s.alpha[i], void_without_edge_change(w, next, i), SCALE_VOID)),
+        (!merged && s.alpha[i].min(next.alpha[i]) > xmax).then(|| change(s.t_g[i], next.t_g[i], SCALE_TEMPERATURE_K)),
+        (!merged && (1.0 - s.alpha[i]).min(1.0 - next.alpha[i]) > xmax)
+            .then(|| change(s.t_l[i], next.t_l[i], SCALE_TEMPERATURE_K)),
+    ]
 }
 
 /// What a rejected step changed in each cell, kept for its retries (shorter steps from the same

@@ -492,9 +492,9 @@ struct Work {
     /// The volume errors of the last step rejected for them, for its retries
     /// ([`acceptance::volume_error_check`]).
     volume_retry: RetryRecord,
-    /// The pressure changes of the last step the change control rejected, for its retries
-    /// ([`Scheme::change_control`]).
-    pressure_retry: RetryRecord,
+    /// The changes of each variable of [`acceptance::CELL_VARIABLES`] in the last step the
+    /// change control rejected, for its retries ([`Scheme::change_control`]).
+    cell_retry: [RetryRecord; 4],
     /// Per cell: whether it was recovered as one near-critical mixture (`state_recovery`).
     mixture: Vec<bool>,
     /// Per cell: whether it was recovered again at the pressure at which its phases fill it
@@ -634,7 +634,9 @@ fn resize(w: &mut Work, n: usize) {
     w.mixture.resize(n, false);
     w.refilled.resize(n, false);
     w.volume_retry.resize(n);
-    w.pressure_retry.resize(n);
+    for r in &mut w.cell_retry {
+        r.resize(n);
+    }
     w.alpha_mom.resize(nj, None);
     w.work_fix.resize(n, 0.0);
     w.x.resize(n, Vector4::zeros());
