@@ -20,10 +20,12 @@ use crate::scheme::{Rejection, StepReport};
 /// 1.25 after three steps in a row with a ratio below 0.5 and cut it to 0.8 of a step above 0.8,
 /// so the steps climbed and fell in a saw-tooth through a band of ratios, most of them well below
 /// the limit. Measured on the operating envelope (`cryofit bench envelope --jobs 2 --json [--params
-/// examples/nbs/calibrated.toml]`): step attempts 172 059 → 145 954 and 294 119 → 249 151, the
-/// mean station-4 error against steps of at most 1 ms 0.47 → 0.50 % and 0.96 → 0.98 %; the
-/// six NBS runs 4 094 / 2 923 / 2 439 / 7 031 / 19 670 / 11 943 → 3 620 / 2 814 / 2 085 / 6 533 /
-/// 15 014 / 9 244 attempts. Targets of 0.5 and 0.65 took more steps or moved station 4 further
+/// examples/nbs/calibrated.toml]`, with the junction presence of
+/// `Scheme::junction_presence_fractions` that came with it): step attempts 172 059 → 149 118 and
+/// 294 119 → 239 224, the mean station-4 error against steps of at most 1 ms 0.46 → 0.51 % and
+/// 0.85 → 1.16 % (methane subcooled at 3 atm, a run with two branches, −4.3 %); the six NBS
+/// runs 4 094 / 2 923 / 2 439 / 7 031 / 19 670 / 11 943 → 3 704 / 2 774 / 2 105 / 5 122 / 13 419
+/// / 8 544 attempts. Targets of 0.5 and 0.65 took more steps or moved station 4 further
 /// (BENCHMARKS.md, "The step set in proportion to its change ratio").
 #[derive(Debug, Clone, PartialEq)]
 pub struct StepControl {
