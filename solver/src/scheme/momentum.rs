@@ -437,7 +437,7 @@ impl Scheme<'_> {
     /// cost near the truth rough, 536 to 1 034 within 2 % of it). The velocity-weighted mean
     /// of both cells at rest, without the force, left the gas at the junction between the
     /// separated liquid (no gas) and the gas above it untied in every other step, flying up at
-    /// 9.6 m/s and tied back in the next (a two-step cycle; the liquid column 3.5 % off its
+    /// 9.6 m/s and tied back in the next (a two-step cycle; the liquid column 3.6 % off its
     /// hydrostatic pressure gradient). The blending velocity is numerics: at 0.05 and 0.2 m/s
     /// against 0.1 the six NBS runs' station-4 chilldowns move by at most 0.4 s but for
     /// hydrogen subcooled at 4.2 atm, whose two branches (68.8 and 70.4 s) it lands on by turns.
