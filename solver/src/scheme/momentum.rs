@@ -343,7 +343,7 @@ impl Scheme<'_> {
         // otherwise undetermined by anything physical, and through the convective term it
         // would drag the neighbouring junctions.
         // (the junction's own fractions count too: fluid drawn from a liquid reservoir has no gas)
-        let (side_g, side_l) = self.junction_presence_fractions(s, j);
+        let (side_g, side_l) = self.junction_presence_fractions(s, j, &js, (p_r - p_l) / g.dx_junction(j), gx);
         let share_l = if ar_g + ar_l > 0.0 { ar_l / (ar_g + ar_l) } else { a_l };
         let pres = presence(side_g.min(side_l).min(a_g).min(share_l), ph.cryo.blend_min, ph.cryo.blend_max);
         drag += (1.0 - pres) * rho_m / BLEND_RELAXATION_S;
@@ -441,14 +441,14 @@ impl Scheme<'_> {
     /// hydrostatic pressure gradient). The blending velocity is numerics: at 0.05 and 0.2 m/s
     /// against 0.1 the six NBS runs' station-4 chilldowns move by at most 0.4 s but for
     /// hydrogen subcooled at 4.2 atm, whose two branches (68.8 and 70.4 s) it lands on by turns.
-    pub(super) fn junction_presence_fractions(&self, s: &State, j: usize) -> (f64, f64) {
+    ///
+    /// `js` is the junction's state, `dpdx` its old pressure gradient and `gx` gravity's
+    /// component along it, as its momentum equations take them ([`Scheme::junction_coefficients`]).
+    fn junction_presence_fractions(&self, s: &State, j: usize, js: &JunctionState, dpdx: f64, gx: f64) -> (f64, f64) {
         let n = self.grid.n;
         if j == 0 || j == n {
             return self.junction_min_fractions(s, j);
         }
-        let grav = if self.physics.gravity { GRAVITY } else { 0.0 };
-        let gx = -grav * self.grid.sin_junction[j];
-        let dpdx = (s.p[j] - s.p[j - 1]) / self.grid.dx_junction(j);
         // the fraction a phase with old velocity v and density rho takes from the left cell
         // (f_l) and the right one (f_r)
         let from_donor = |f_l: f64, f_r: f64, v: f64, rho: f64| {
@@ -461,11 +461,9 @@ impl Scheme<'_> {
             let d = t + (1.0 - t.abs()) * pushed;
             0.5 * (1.0 + d) * f_l + 0.5 * (1.0 - d) * f_r
         };
-        let rho_g = 0.5 * (s.gas[j - 1].rho + s.gas[j].rho);
-        let rho_l = 0.5 * (s.liquid[j - 1].rho + s.liquid[j].rho);
         (
-            from_donor(s.alpha[j - 1], s.alpha[j], s.v_g[j], rho_g),
-            from_donor(liquid_share(s, j - 1), liquid_share(s, j), s.v_l[j], rho_l),
+            from_donor(s.alpha[j - 1], s.alpha[j], s.v_g[j], js.rho_g),
+            from_donor(liquid_share(s, j - 1), liquid_share(s, j), s.v_l[j], js.rho_l),
         )
     }
 
