@@ -8,15 +8,17 @@ mod common;
 use common::{cryofit, ok, small_nbs_case, small_nbs_case_from, wall_data};
 
 /// True values of the twin experiment: the dry-wall gas convection scale (the vapour's pre-cooling
-/// ahead of the front) and the wall mass-transfer scale (the front's speed), two effects the wall
-/// traces tell apart. (The film-boiling scale qmfbsc trades off against Gwsc or Tmfbsc along a
-/// valley of equal cost on this case: those twins fit to the noise level 8–17 % away from the
-/// truth.)
+/// ahead of the front) and the wall friction scale (the line's flow, and with it the front's
+/// speed), two effects the wall traces tell apart. (The film-boiling scale qmfbsc trades off
+/// against Gwsc or Tmfbsc along a valley of equal cost on this case: those twins fit to the noise
+/// level 8–17 % away from the truth. The wall mass-transfer scale Gwsc, this twin's second
+/// parameter before, hardly shows in it: with steps of at most 1 ms its station-4 chilldown moves
+/// by 0.26 s from Gwsc 0.6 to 1.0, against a one-ulp spread with a standard deviation of 0.2 s at
+/// the default steps; the 0.66 s it moved under the 25 % velocity rule was the steps', and the
+/// test passed or failed with the seed.)
 const TRUE_HG0SC: f64 = 2.0;
-/// Below 1: the part of `Gwsc` above 1 acts only on superheated liquid (the scheme's
-/// `wall_evaporation_scale`), which this short case hardly has, so a truth above 1 would not be
-/// identifiable from its wall temperatures.
-const TRUE_GWSC: f64 = 0.6;
+/// Above 1: more friction than the defaults, less flow.
+const TRUE_FWSC: f64 = 1.3;
 
 /// Writes data simulated at the true values with 1 K of noise on the wall temperatures.
 fn twin_data(dir: &Path, case: &Path) -> PathBuf {
@@ -27,7 +29,7 @@ fn twin_data(dir: &Path, case: &Path) -> PathBuf {
         "--set",
         &format!("hg0sc={TRUE_HG0SC}"),
         "--set",
-        &format!("Gwsc={TRUE_GWSC}"),
+        &format!("fwsc={TRUE_FWSC}"),
         "--noise",
         "wall_temperature_k=1.0",
         "--seed",
@@ -37,7 +39,7 @@ fn twin_data(dir: &Path, case: &Path) -> PathBuf {
     ]));
     let probes = std::fs::read_to_string(truth.join("probes.csv")).unwrap();
     let data = format!(
-        "# twin data: simulated at hg0sc = {TRUE_HG0SC}, Gwsc = {TRUE_GWSC}, noise 1 K\n{}",
+        "# twin data: simulated at hg0sc = {TRUE_HG0SC}, fwsc = {TRUE_FWSC}, noise 1 K\n{}",
         wall_data(&probes)
     );
     let path = dir.join("data.csv");
@@ -55,7 +57,7 @@ data = "data.csv"
 name = "hg0sc"
 scale = "log"
 [[parameters]]
-name = "Gwsc"
+name = "fwsc"
 scale = "log"
 [weights]
 wall_temperature_k = { weight = 1.0, sigma = 1.0 }
@@ -64,7 +66,7 @@ algorithm = "cmaes"
 budget = 150
 # finite differences over 6 % of each (log) range: at 3 % the cost's jitter (about 14 units on the
 # subcooled case this twin was first made on) outweighed the curvature along the valley of hg0sc
-# and Gwsc and the Hessian came out indefinite
+# and the wall mass-transfer scale Gwsc and the Hessian came out indefinite
 [[stages]]
 algorithm = "variance"
 budget = 40
@@ -101,14 +103,14 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     // stage's standard deviations where the data pin a parameter more loosely than that, and
     // every standard deviation below a quarter of the truth (the data do identify both); the
     // reported estimate, the variance stage's response-surface minimum, within its 95 % interval.
-    // (That estimate is a quadratic fitted through the cost's jitter: a change of the solver's
-    // first contact moved it from 0.598 to 0.564 where CMA-ES found 0.591 and 0.593. On this
-    // case hg0sc and Gwsc share a shallow valley: the variance stage puts Gwsc's standard
-    // deviation at about 15 % of its value, hg0sc's at 4 %, and with the pressure equation's
-    // donors at the new time CMA-ES ended at Gwsc 0.695 on a cost of 520.6 where the truth's is
-    // 519: a 5 % test on Gwsc alone had passed on how the jitter fell.)
+    // (That estimate is a quadratic fitted through the cost's jitter. The data pin fwsc to
+    // 0.3 % and hg0sc to about 7 %: over the seeds 2, 3 and 4, on this solver and the one before
+    // (its step control of the velocities by the 25 % rule), CMA-ES found fwsc within 0.4 % of
+    // its truth each time, and hg0sc within 5 % but once, at 1.63 with the seed 4, where the
+    // flat side of its valley and the jitter met; the Gwsc of the twin before had 15 % and
+    // passed or failed with the seed.)
     let found = &result["stages"][0]["best_parameters"];
-    for (name, truth) in [("hg0sc", TRUE_HG0SC), ("Gwsc", TRUE_GWSC)] {
+    for (name, truth) in [("hg0sc", TRUE_HG0SC), ("fwsc", TRUE_FWSC)] {
         let cmaes = found[name].as_f64().unwrap();
         let best = result["best_parameters"][name].as_f64().unwrap();
         let u = &result["uncertainty"]["parameters"][name];
@@ -129,7 +131,7 @@ fn twin_experiment_recovers_the_truth_and_predicts() {
     assert_eq!(result["evaluations"].as_u64().unwrap(), expected);
     let evaluations = std::fs::read_to_string(out_dir.join("evaluations.csv")).unwrap();
     assert_eq!(evaluations.lines().count() as u64, expected + 1);
-    assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,Gwsc,reason"));
+    assert!(evaluations.starts_with("id,stage,algorithm,status,cost,hg0sc,fwsc,reason"));
     assert_eq!(result["stages"].as_array().unwrap().len(), 2);
     // best.toml is a --params file that reproduces the best fit's probes
     // the comparison reads the folder's result.json (a folder against itself: equal criteria)
@@ -232,7 +234,7 @@ fn bad_calibration_files_are_refused_with_the_field_named() {
     )
     .unwrap();
     let cases = [
-        (TWIN.replace("name = \"Gwsc\"", "name = \"Gwscc\""), "did you mean `Gwsc`"),
+        (TWIN.replace("name = \"fwsc\"", "name = \"fwscc\""), "did you mean `fwsc`"),
         (TWIN.replace("budget = 150", "budget = 150\nwalkers = 4"), "stages[0].walkers: does not apply"),
         (TWIN.replace("sigma = 1.0 }", "sigma = -1.0 }"), "weights.wall_temperature_k.sigma"),
         (TWIN.replace("data = \"data.csv\"", "data = \"missing.csv\""), "experiments[0].data: cannot read"),
