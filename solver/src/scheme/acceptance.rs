@@ -125,8 +125,8 @@ impl VelocityTrend {
         self.dv_l.extend(next.v_l.iter().zip(&s.v_l).map(|(a, b)| a - b));
     }
 
-    /// For a step of `h` from `time` on a line of `junctions` junctions: the ratio of its length to the last step's, where that
-    /// step ended at `time`.
+    /// For a step of `h` from `time` on a line of `junctions` junctions: the ratio of its length
+    /// to the last step's, where that step ended at `time`.
     fn before(&self, time: f64, h: f64, junctions: usize) -> Option<f64> {
         (self.dt > 0.0 && self.end == time && self.dv_g.len() == junctions).then(|| h / self.dt)
     }
