@@ -396,9 +396,15 @@ impl ChangeRatio {
         } else {
             (error, "left its trend by more than its local error allows")
         };
+        self.take(ratio, Rejection { cell: j, variable, value: new, reason });
+    }
+
+    /// Takes in a change's `ratio` with the rejection it makes above 1: it becomes the step's
+    /// where it is the largest so far or not a number (entered as infinite).
+    fn take(&mut self, ratio: f64, why: Rejection) {
         if ratio.is_nan() || ratio > self.ratio {
             self.ratio = if ratio.is_finite() { ratio } else { f64::INFINITY };
-            self.worst = Rejection { cell: j, variable, value: new, reason };
+            self.worst = why;
         }
     }
 
@@ -408,10 +414,7 @@ impl ChangeRatio {
         if held && r.is_finite() {
             r = r.min(1.0);
         }
-        if r.is_nan() || r > self.ratio {
-            self.ratio = if r.is_finite() { r } else { f64::INFINITY };
-            self.worst = Rejection { cell, variable, value: new, reason: "changed by more than 25 %" };
-        }
+        self.take(r, Rejection { cell, variable, value: new, reason: "changed by more than 25 %" });
     }
 }
 
