@@ -150,7 +150,9 @@ impl Scheme<'_> {
         before: &Before,
     ) -> Result<(), Rejection> {
         let x0 = w.x[i][0];
-        if let Some(p) = refill::filling_pressure(self.fluid, &cell_contents(next, i), next.p[i]) {
+        if let Some(p) =
+            refill::filling_pressure(self.fluid, &cell_contents(next, i), next.p[i], refill::MAX_RELATIVE_MOVE)
+        {
             before.restore(next, budget, i);
             w.x[i][0] = p - st.s.p[i];
             let again = self.recover_or_mix(st, w, next, budget, i);
@@ -173,13 +175,15 @@ impl Scheme<'_> {
 
     /// Recovers cell `i`, whose recovery has just merged a phase into the other (`w.merged`)
     /// with a volume error above `MAX_VOLUME_ERROR`, again at the pressure at which its merged
-    /// contents fill it ([`refill::filling_pressure`]), or, near the critical point where the
+    /// contents fill it ([`refill::filling_pressure`], within `refill::MAX_RELATIVE_MOVE` of
+    /// the pressure solve's), or, near the critical point where the
     /// phases alone fill it at no pressure within reach, as one mixture at the pressure at which
     /// the mixture fills it ([`Mixture::filling_pressure`], [`Scheme::near_critical_mixture`]).
     /// The cell stays exempt from the volume-error check and the change control (the merge is
     /// not a function of the step). Where neither exists, or the recovery at the pressure
-    /// found leaves a larger error (or, in the first case, is one mixture), the first recovery
-    /// stands.
+    /// found leaves a larger error (or, in the first case, is one mixture), the merged contents'
+    /// filling pressure is sought farther off, within `refill::MERGED_MAX_RELATIVE_MOVE`; where
+    /// that fails as well, the first recovery stands.
     ///
     /// Decision: the volume a merge leaves is not the step's linearisation error, and it was left
     /// to the following steps' pressure equations; near the critical point they do not remove it.
@@ -203,23 +207,38 @@ impl Scheme<'_> {
     /// falls from 3.4–6.5e-3 to 2.0–3.3e-3, and their station-4 chilldown moves by 0.3 % at most.
     fn refill_merged(&self, st: &StepInput, w: &mut Work, next: &mut State, budget: &mut StepBudget, i: usize) {
         let merged = MergedCell::take(next, w, budget, i);
-        let kept = match refill::filling_pressure(self.fluid, &cell_contents(next, i), next.p[i]) {
+        let contents = cell_contents(next, i);
+        let p0 = next.p[i];
+        let improved = |w: &Work, next: &State, kept: bool| {
+            kept && !w.mixture[i] && next.volume_error[i].abs() < merged.volume_error()
+        };
+        let near = match refill::filling_pressure(self.fluid, &contents, p0, refill::MAX_RELATIVE_MOVE) {
             Some(p) => {
                 w.x[i][0] = p - st.s.p[i];
                 let again = self.recover_or_mix(st, w, next, budget, i);
-                again.is_ok() && !w.mixture[i]
+                improved(w, next, again.is_ok())
             }
             None => {
                 let m = next.m_g[i] + next.m_l[i];
                 let u = (next.e_g[i] + next.e_l[i]) / m;
                 let guesses = (next.t_g[i], next.t_l[i]);
-                Mixture::filling_pressure(self.fluid, m, u, next.p[i], guesses).is_some_and(|p| {
+                Mixture::filling_pressure(self.fluid, m, u, p0, guesses).is_some_and(|p| {
                     w.x[i][0] = p - st.s.p[i];
                     self.near_critical_mixture(st, w, next, i, NearCritical::Filled).is_some()
+                        && next.volume_error[i].abs() < merged.volume_error()
                 })
             }
         };
-        if kept && next.volume_error[i].abs() < merged.volume_error() {
+        // where neither lies near, the merged contents' filling pressure farther off
+        let kept = near || {
+            merged.restore(next, w, budget, i);
+            refill::filling_pressure(self.fluid, &contents, p0, refill::MERGED_MAX_RELATIVE_MOVE).is_some_and(|p| {
+                w.x[i][0] = p - st.s.p[i];
+                let again = self.recover_or_mix(st, w, next, budget, i);
+                improved(w, next, again.is_ok())
+            })
+        };
+        if kept {
             w.merged[i] = true;
             w.reset[i] = true;
             w.reset_volume[i] = next.volume_error[i];
