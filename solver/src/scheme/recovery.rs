@@ -176,9 +176,9 @@ impl Scheme<'_> {
     /// Recovers cell `i`, whose recovery has just merged a phase into the other (`w.merged`)
     /// with a volume error above `MAX_VOLUME_ERROR`, again at the pressure at which its merged
     /// contents fill it ([`refill::filling_pressure`], within `refill::MAX_RELATIVE_MOVE` of
-    /// the pressure solve's), or, near the critical point where the
-    /// phases alone fill it at no pressure within reach, as one mixture at the pressure at which
-    /// the mixture fills it ([`Mixture::filling_pressure`], [`Scheme::near_critical_mixture`]).
+    /// the pressure solve's), or, near the critical point where the phases alone fill it at no
+    /// pressure within reach, as one mixture at the pressure at which the mixture fills it
+    /// ([`Mixture::filling_pressure`], [`Scheme::near_critical_mixture`]).
     /// The cell stays exempt from the volume-error check and the change control (the merge is
     /// not a function of the step). Where neither exists, or the recovery at the pressure
     /// found leaves a larger error (or, in the first case, is one mixture), the merged contents'
