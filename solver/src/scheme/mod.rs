@@ -533,6 +533,9 @@ struct Work {
     /// Per junction: the heat its momentum forces put into the fluid, W/m³ ([`momentum::booked_heat`];
     /// estimated in `provisional_velocities`, booked in `dissipated_heat`).
     junction_heat: Vec<f64>,
+    /// Per junction: the slope of `junction_heat` in the junction's pressure difference change
+    /// δp_L − δp_R, W/(m³ Pa) (`provisional_velocities`; the pressure equation's heat).
+    heat_slope: Vec<f64>,
     /// The power that the boundary junctions' form losses and a choked exit's resistance gave
     /// the fluid leaving the line, W (`dissipated_heat`; [`momentum::exported_heat`]): not
     /// booked in a cell, it leaves with the outflow.
@@ -623,7 +626,7 @@ fn resize(w: &mut Work, n: usize) {
     let nj = n + 1;
     let m = nj.max(n);
     w.mech.resize(nj, JunctionWork::default());
-    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.junction_heat] {
+    for v in [&mut w.vt_g, &mut w.vt_l, &mut w.w_g, &mut w.w_l, &mut w.junction_heat, &mut w.heat_slope] {
         v.resize(nj, 0.0);
     }
     for v in [&mut w.a, &mut w.b, &mut w.c, &mut w.d, &mut w.s] {

@@ -219,6 +219,9 @@ impl Scheme<'_> {
             w.junction_heat[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j))
                 + time_step_loss(&w.mech[j], j, [s.v_g.as_slice(), s.v_l.as_slice()], vt, st.dt)
                 - exported_heat(&w.mech[j], j, st.n, vt);
+            let v0 = [s.v_g.as_slice(), s.v_l.as_slice()];
+            let (dg, dl) = heat_slope(&w.mech[j], j, st.n, vt, v0, mass, g.dx_junction(j), st.dt);
+            w.heat_slope[j] = dg * w.w_g[j] + dl * w.w_l[j];
         }
         Ok(())
     }
@@ -539,6 +542,57 @@ pub(super) fn booked_heat(
     heat
 }
 
+/// The slope of junction `j`'s heat for the pressure equation ([`booked_heat`] plus
+/// [`time_step_loss`] less [`exported_heat`], W/m³) in its own gas and liquid velocities at
+/// `vt`, W s/m⁴: (∂H/∂v_g, ∂H/∂v_l), the upstream junctions' velocities held.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn heat_slope(
+    m: &JunctionWork,
+    j: usize,
+    n: usize,
+    vt: [&[f64]; 2],
+    v0: [&[f64]; 2],
+    mass: [&[f64]; 2],
+    dx_j: f64,
+    dt: f64,
+) -> (f64, f64) {
+    let (g1, l1) = (vt[0][j], vt[1][j]);
+    let r1 = g1 - l1;
+    let drag = 2.0 * m.drag * r1 - m.drag_explicit;
+    let mut d = [2.0 * m.fric[0] * g1 + drag, 2.0 * m.fric[1] * l1 - drag];
+    for k in 0..2 {
+        let v = vt[k][j];
+        if let Some((c, up)) = m.conv[k] {
+            let (v_up, vt_up) = (vt[k][up], vt[k][up]);
+            let cell = if up < j { j - 1 } else { j };
+            let mk = mass[k][cell].max(0.0) / dx_j;
+            d[k] += c * (2.0 * v - vt_up) - 0.5 * mk * (v.signum() * (v * v - v_up * v_up) + 2.0 * v.abs() * v);
+        }
+        if let Some(gx) = m.gravity {
+            let donor = if v >= 0.0 { j - 1 } else { j };
+            d[k] += (mass[k][donor].max(0.0) - m.inertia[k]) * gx;
+        }
+    }
+    let (dg, dl) = (vt[0][j] - v0[0][j], vt[1][j] - v0[1][j]);
+    let dr = dg - dl;
+    d[0] += (m.inertia[0] * dg + m.inertia[2] * dr) / dt;
+    d[1] += (m.inertia[1] * dl - m.inertia[2] * dr) / dt;
+    let outward = if j == 0 {
+        -1.0
+    } else if j == n {
+        1.0
+    } else {
+        0.0
+    };
+    for k in 0..2 {
+        let v = vt[k][j];
+        if outward * v > 0.0 {
+            d[k] -= 2.0 * m.boundary_loss[k] * v;
+        }
+    }
+    (d[0], d[1])
+}
+
 /// Kinetic energy that junction `j`'s implicit inertia loses over a step of `dt` from the
 /// velocities `v0` to `v1`, as heat per unit volume of its control volume, W/m³: ½ α_k ρ_k
 /// (v_k¹ − v_k⁰)² for each phase and ½ C_vm (v_r¹ − v_r⁰)² for the virtual mass of the relative
@@ -737,5 +791,54 @@ impl FormLoss<'_> {
         let drive = (ar * v / self.dt - a * self.dp_old / self.dx + ar * self.gx).abs();
         let speed = 2.0 * drive / (inertia + (inertia * inertia + 4.0 * c * drive).sqrt());
         c * if speed.is_finite() { speed } else { v.abs() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The heat's slope is the derivative of the heat the pressure equation estimates
+    /// (`provisional_velocities`): central differences in each phase's velocity, at an interior
+    /// junction with convection and gravity and at an exit with its form loss.
+    #[test]
+    fn the_heat_slope_is_the_heats_derivative() {
+        let m = JunctionWork {
+            inertia: [1.3, 640.0, 12.0],
+            fric: [4.0, 90.0],
+            boundary_loss: [1.5, 30.0],
+            drag: 250.0,
+            drag_explicit: 40.0,
+            conv: [Some((55.0, 1)), Some((210.0, 1))],
+            gravity: Some(-3.2),
+            gamma: 0.0,
+        };
+        let (dt, dx) = (0.04, 2.0);
+        let mass = [vec![1.1, 1.4, 1.2], vec![300.0, 420.0, 380.0]];
+        let mass = [mass[0].as_slice(), mass[1].as_slice()];
+        let v0 = [vec![8.0, 9.5, 11.0, 11.8], vec![2.0, 2.4, 3.1, 3.2]];
+        let v0 = [v0[0].as_slice(), v0[1].as_slice()];
+        for (j, n, m) in [(2, 3, m), (3, 3, JunctionWork { conv: [None, None], gravity: None, ..m })] {
+            let base = [vec![8.3, 9.9, 11.6, 12.0], vec![2.2, 2.6, 3.3, 3.5]];
+            let heat = |vt: [&[f64]; 2]| {
+                booked_heat(&m, j, vt, vt, mass, dx) + time_step_loss(&m, j, v0, vt, dt) - exported_heat(&m, j, n, vt)
+            };
+            let vt = [base[0].as_slice(), base[1].as_slice()];
+            let slope = heat_slope(&m, j, n, vt, v0, mass, dx, dt);
+            for k in 0..2 {
+                let h = 1e-4;
+                let at = |d: f64| {
+                    let mut v = base.clone();
+                    v[k][j] += d;
+                    heat([v[0].as_slice(), v[1].as_slice()])
+                };
+                let numeric = (at(h) - at(-h)) / (2.0 * h);
+                let analytic = if k == 0 { slope.0 } else { slope.1 };
+                assert!(
+                    (numeric - analytic).abs() <= 1e-6 * numeric.abs().max(1.0),
+                    "junction {j}, phase {k}: {analytic} against {numeric}"
+                );
+            }
+        }
     }
 }

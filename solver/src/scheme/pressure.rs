@@ -83,6 +83,7 @@ impl Scheme<'_> {
         w.heat_l[i] = heat_l;
         sys.rhs[2] += dt * heat_g / v;
         sys.rhs[3] += dt * heat_l / v;
+        self.heat_rows(st, w, i, &mut sys);
         // sources: row += −dt * source (moved to the left)
         for (row, lin, sign) in [(0, src.gamma, 1.0), (1, src.gamma, -1.0), (2, src.s_g, 1.0), (3, src.s_l, 1.0)] {
             sys.rhs[row] += sign * dt * lin.c0;
@@ -96,6 +97,57 @@ impl Scheme<'_> {
         w.bdi[i] = sys.diag;
         w.bup[i] = sys.upper;
         w.x[i] = sys.rhs;
+    }
+
+    /// The heat's change with the step's pressure changes, into cell `i`'s energy rows: each of
+    /// its junctions' heat linear in the change of the junction's pressure difference
+    /// (`w.heat_slope`, the heat's slope in the junction's velocities times their pressure
+    /// weights), shared between the cell's phases as [`Scheme::dissipation_split`] shares the
+    /// heat.
+    ///
+    /// Decision: step 2 books the heat of the momentum forces at the new velocities
+    /// (`dissipated_heat`), the pressure equation estimated it at the provisional ones; the
+    /// difference, first order in the step, went into the volume error. At the exit of the
+    /// subcooled nitrogen run (mist at 175 m/s, 100 s) step 2 heated the exit cell's vapour by
+    /// 3.2 kJ/m³ a step (of 60 ms) more than the equation had solved for, against 0.7 kJ/m³ less
+    /// for the faces' flow work at the new pressure. With both linear in the pressure changes
+    /// (the flow work in `cell_fluxes`), one step of 50 ms from the run's state at 100 s leaves
+    /// a largest volume error of 2.5e-4, against 1.2e-3 before (each build from its own run's
+    /// state; 0.1 s steps: 7.2e-4, against a rejection at 5.0e-3), a test below.
+    fn heat_rows(&self, st: &StepInput, w: &Work, i: usize, sys: &mut CellSystem) {
+        let s = st.s;
+        let (n, dt, v) = (st.n, st.dt, self.grid.volume[i]);
+        let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
+        let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
+        if cg + cl <= 0.0 {
+            return;
+        }
+        let fg = cg / (cg + cl);
+        for (row, f) in [(2, fg), (3, 1.0 - fg)] {
+            for (j, side) in [(i, -1.0), (i + 1, 1.0)] {
+                let inside = if j == 0 || j == n { 1.0 } else { 0.5 };
+                let t = dt * f * inside * w.heat_slope[j] * self.junction_volume(j, st.inlet1, st.outlet1) / v;
+                if t == 0.0 || !t.is_finite() {
+                    continue;
+                }
+                // rhs += t (δp_L − δp_R), moved to the left
+                if side > 0.0 {
+                    sys.diag[(row, 0)] -= t;
+                    if i + 1 < n {
+                        sys.upper[(row, 0)] += t;
+                    } else {
+                        sys.rhs[row] += -t * st.dp_out;
+                    }
+                } else {
+                    sys.diag[(row, 0)] += t;
+                    if i > 0 {
+                        sys.lower[(row, 0)] -= t;
+                    } else {
+                        sys.rhs[row] += t * st.dp_in;
+                    }
+                }
+            }
+        }
     }
 
     /// The donor-cell fluxes through cell `i`'s left (j = i) and right (j = i + 1) junctions:
@@ -118,11 +170,24 @@ impl Scheme<'_> {
                         DonorContents::boundary(b, k == 0)
                     }
                 };
-                // the flow work p α_k at the cell's old pressure and the donor's old fraction
-                // (step 2 charges the faces' flow work at the new pressure; linearising that
-                // here too took more steps: BENCHMARKS.md, "The flow work at the new pressure")
+                // the flow work p α̂_k of the volume that crosses the face, as step 2 charges it
+                // (`Scheme::energy_update`): at the cell's new pressure p + δp_i and the donor's
+                // new-time fraction α̂_k + δα̂_k, linear in both changes. Decision: the pressure
+                // equation took p and α̂ at the old time, so the energy step 2 gave a phase
+                // differed from the one the equation had solved its state for by the step's
+                // pressure change times the volume that moved, and by p times the moved
+                // fraction's change: a volume error in proportion to the step, not its square
+                // (see `Scheme::heat_rows`; BENCHMARKS.md, "The pressure equation's energy as
+                // step 2 books it"). Linearising the new pressure alone, without the fraction's
+                // change and the heat's slope, took more steps (BENCHMARKS.md, "The flow work at
+                // the new pressure").
                 let p_work = s.p[i];
-                let rows = [(k, d.mass, d.mass_slope), (2 + k, d.energy + p_work * d.fraction, d.energy_slope)];
+                let mut energy_slope = d.energy_slope;
+                if donor_cell.is_some() {
+                    energy_slope[1] += if k == 0 { p_work } else { -p_work };
+                }
+                let rows = [(k, d.mass, d.mass_slope), (2 + k, d.energy + p_work * d.fraction, energy_slope)];
+                sys.diag[(2 + k, 0)] += side * f * d.fraction * vt;
                 for (row, q, slope) in rows {
                     // side * f * (q + slope · x_donor) * (vt + wj (δp_L − δp_R)), the product of
                     // the changes dropped
