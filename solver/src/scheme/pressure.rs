@@ -111,9 +111,9 @@ impl Scheme<'_> {
     /// subcooled nitrogen run (mist at 175 m/s, 100 s) step 2 heated the exit cell's vapour by
     /// 3.2 kJ/m³ a step (of 60 ms) more than the equation had solved for, against 0.7 kJ/m³ less
     /// for the faces' flow work at the new pressure. With both linear in the pressure changes
-    /// (the flow work in `cell_fluxes`), one step of 50 ms from the run's state at 100 s leaves
-    /// a largest volume error of 2.5e-4, against 1.2e-3 before (each build from its own run's
-    /// state; 0.1 s steps: 7.2e-4, against a rejection at 5.0e-3), a test below.
+    /// (the flow work in `cell_fluxes`), one step of 50 ms from the run's state at 100 s
+    /// leaves a largest volume error of 2.5e-4, against 1.2e-3 before (each build from its own
+    /// run's state; `driver` test `a_step_behind_the_front_leaves_a_small_volume_error`).
     fn heat_rows(&self, st: &StepInput, w: &Work, i: usize, sys: &mut CellSystem) {
         let s = st.s;
         let (n, dt, v) = (st.n, st.dt, self.grid.volume[i]);
