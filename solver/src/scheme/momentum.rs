@@ -563,10 +563,11 @@ pub(super) fn heat_slope(
     for k in 0..2 {
         let v = vt[k][j];
         if let Some((c, up)) = m.conv[k] {
-            let (v_up, vt_up) = (vt[k][up], vt[k][up]);
+            // the upstream junction's velocity, which the estimate takes at `vt` in both places
+            let v_up = vt[k][up];
             let cell = if up < j { j - 1 } else { j };
             let mk = mass[k][cell].max(0.0) / dx_j;
-            d[k] += c * (2.0 * v - vt_up) - 0.5 * mk * (v.signum() * (v * v - v_up * v_up) + 2.0 * v.abs() * v);
+            d[k] += c * (2.0 * v - v_up) - 0.5 * mk * (v.signum() * (v * v - v_up * v_up) + 2.0 * v.abs() * v);
         }
         if let Some(gx) = m.gravity {
             let donor = if v >= 0.0 { j - 1 } else { j };

@@ -367,9 +367,9 @@ impl DonorContents {
 ///
 /// Decision: the energy a donor carries is α_k ρ_k u_k, its storage row with ρ_k u_k for the
 /// change of the fraction (the cell's own equation has ρ_k h_k there, its flow work p δα_k
-/// included); the flow work a flux carries is p α_k at the donor's old fraction. An absent
-/// phase's contents are linear in its unknowns too (a trace carried into a liquid-filled cell
-/// and on out of it in one step is in both cells' fluxes). With the donors at the old time the
+/// included); the flow work p α_k a flux carries, with its change, is the caller's
+/// (`cell_fluxes`). An absent phase's contents are linear in its unknowns too (a trace carried
+/// into a liquid-filled cell and on out of it in one step is in both cells' fluxes). With the donors at the old time the
 /// volume error of a step was the donor lag of each flux (the donor's contents change over the
 /// step while step 2 takes them at the new time), and that error held most of the steps of the
 /// NBS runs (BENCHMARKS.md).
