@@ -96,14 +96,8 @@ impl Scheme<'_> {
     /// Cell `i`'s dissipation (W) split between gas and liquid in proportion to their heat
     /// capacities m_k c_p,k.
     pub(super) fn dissipation_split(&self, st: &StepInput, diss: &[f64], i: usize) -> (f64, f64) {
-        let s = st.s;
         let total = self.dissipation_share(st, diss, i);
-        let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
-        let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
-        if cg + cl <= 0.0 {
-            return (0.0, 0.0);
-        }
-        let fg = cg / (cg + cl);
+        let Some(fg) = gas_heat_fraction(st.s, i) else { return (0.0, 0.0) };
         (total * fg, total * (1.0 - fg))
     }
 
@@ -119,4 +113,13 @@ impl Scheme<'_> {
         };
         share(i) + share(i + 1)
     }
+}
+
+/// The gas's share of cell `i`'s heat capacity m_g c_p,g / (m_g c_p,g + m_l c_p,l), by which a
+/// cell's dissipation is split between its phases ([`Scheme::dissipation_split`], and its slope
+/// in the pressure equation); `None` where the cell holds no heat capacity.
+pub(super) fn gas_heat_fraction(s: &State, i: usize) -> Option<f64> {
+    let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
+    let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
+    (cg + cl > 0.0).then(|| cg / (cg + cl))
 }

@@ -214,12 +214,12 @@ impl Scheme<'_> {
             w.vt_l[j] = w.rhs2[j][1];
         }
         let mass = [s.m_g.as_slice(), s.m_l.as_slice()];
+        let v0 = [s.v_g.as_slice(), s.v_l.as_slice()];
         for j in 0..st.n + 1 {
             let vt = [w.vt_g.as_slice(), w.vt_l.as_slice()];
             w.junction_heat[j] = booked_heat(&w.mech[j], j, vt, vt, mass, g.dx_junction(j))
-                + time_step_loss(&w.mech[j], j, [s.v_g.as_slice(), s.v_l.as_slice()], vt, st.dt)
+                + time_step_loss(&w.mech[j], j, v0, vt, st.dt)
                 - exported_heat(&w.mech[j], j, st.n, vt);
-            let v0 = [s.v_g.as_slice(), s.v_l.as_slice()];
             let (dg, dl) = heat_slope(&w.mech[j], j, st.n, vt, v0, mass, g.dx_junction(j), st.dt);
             w.heat_slope[j] = dg * w.w_g[j] + dl * w.w_l[j];
         }

@@ -4,6 +4,7 @@
 
 use nalgebra::{Matrix4, Vector4};
 
+use super::balance::gas_heat_fraction;
 use super::{
     Rejection, SCALE_PRESSURE_PA, Scheme, StepInput, VOLUME_ERROR_PRESSURE_FRACTION, Work, boundary_conserved, present,
 };
@@ -115,14 +116,8 @@ impl Scheme<'_> {
     /// leaves a largest volume error of 2.5e-4, against 1.2e-3 before (each build from its own
     /// run's state; `driver` test `a_step_behind_the_front_leaves_a_small_volume_error`).
     fn heat_rows(&self, st: &StepInput, w: &Work, i: usize, sys: &mut CellSystem) {
-        let s = st.s;
         let (n, dt, v) = (st.n, st.dt, self.grid.volume[i]);
-        let cg = s.m_g[i].max(0.0) * s.gas[i].cp;
-        let cl = s.m_l[i].max(0.0) * s.liquid[i].cp;
-        if cg + cl <= 0.0 {
-            return;
-        }
-        let fg = cg / (cg + cl);
+        let Some(fg) = gas_heat_fraction(st.s, i) else { return };
         for (row, f) in [(2, fg), (3, 1.0 - fg)] {
             for (j, side) in [(i, -1.0), (i + 1, 1.0)] {
                 let inside = if j == 0 || j == n { 1.0 } else { 0.5 };
@@ -131,21 +126,7 @@ impl Scheme<'_> {
                     continue;
                 }
                 // rhs += t (δp_L − δp_R), moved to the left
-                if side > 0.0 {
-                    sys.diag[(row, 0)] -= t;
-                    if i + 1 < n {
-                        sys.upper[(row, 0)] += t;
-                    } else {
-                        sys.rhs[row] += -t * st.dp_out;
-                    }
-                } else {
-                    sys.diag[(row, 0)] += t;
-                    if i > 0 {
-                        sys.lower[(row, 0)] -= t;
-                    } else {
-                        sys.rhs[row] += t * st.dp_in;
-                    }
-                }
+                sys.add_pressure_difference(st, i, side, row, -t);
             }
         }
     }
@@ -192,24 +173,7 @@ impl Scheme<'_> {
                     // side * f * (q + slope · x_donor) * (vt + wj (δp_L − δp_R)), the product of
                     // the changes dropped
                     sys.rhs[row] -= side * f * q * vt;
-                    let c = side * f * q * wj;
-                    if side > 0.0 {
-                        // right junction: δp_L = δp_i, δp_R = δp_{i+1}
-                        sys.diag[(row, 0)] += c;
-                        if i + 1 < n {
-                            sys.upper[(row, 0)] -= c;
-                        } else {
-                            sys.rhs[row] += c * st.dp_out;
-                        }
-                    } else {
-                        // left junction: δp_L = δp_{i-1}, δp_R = δp_i
-                        sys.diag[(row, 0)] -= c;
-                        if i > 0 {
-                            sys.lower[(row, 0)] += c;
-                        } else {
-                            sys.rhs[row] -= c * st.dp_in;
-                        }
-                    }
+                    sys.add_pressure_difference(st, i, side, row, side * f * q * wj);
                     if let Some(c) = donor_cell {
                         let block = if c == i {
                             &mut sys.diag
@@ -339,6 +303,31 @@ struct CellSystem {
     upper: Matrix4<f64>,
     /// Right-hand side.
     rhs: Vector4<f64>,
+}
+
+impl CellSystem {
+    /// Adds `c` (δp_L − δp_R) of cell `i`'s left (`side` −1) or right (+1) junction to the left
+    /// side of row `row`: δp_L, δp_R the pressure changes of the junction's two sides, a
+    /// boundary's known change (`st.dp_in`, `st.dp_out`) moved to the right-hand side.
+    fn add_pressure_difference(&mut self, st: &StepInput, i: usize, side: f64, row: usize, c: f64) {
+        if side > 0.0 {
+            // right junction: δp_L = δp_i, δp_R = δp_{i+1}
+            self.diag[(row, 0)] += c;
+            if i + 1 < st.n {
+                self.upper[(row, 0)] -= c;
+            } else {
+                self.rhs[row] += c * st.dp_out;
+            }
+        } else {
+            // left junction: δp_L = δp_{i-1}, δp_R = δp_i
+            self.diag[(row, 0)] -= c;
+            if i > 0 {
+                self.lower[(row, 0)] += c;
+            } else {
+                self.rhs[row] -= c * st.dp_in;
+            }
+        }
+    }
 }
 
 /// What a donor gives one phase's flux through a junction: its mass and internal energy per
