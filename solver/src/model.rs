@@ -265,3 +265,61 @@ pub struct State {
     /// above the limit); empty at a state no step made.
     pub mixture: Vec<bool>,
 }
+
+impl State {
+    /// Makes `self` equal to `other`, reusing `self`'s arrays (no allocation where their
+    /// lengths already match).
+    pub fn copy_from(&mut self, other: &State) {
+        // every field named, so that a field added to the state is not forgotten here
+        let State {
+            time,
+            p,
+            alpha,
+            t_g,
+            t_l,
+            m_g,
+            m_l,
+            e_g,
+            e_l,
+            gas,
+            liquid,
+            volume_error,
+            v_g,
+            v_l,
+            t_w,
+            e_w,
+            wall_heat_flux,
+            wetted,
+            sat,
+            boundary_mass_flow,
+            exit_resistance,
+            mixture,
+        } = other;
+        self.time = *time;
+        for (to, from) in [
+            (&mut self.p, p),
+            (&mut self.alpha, alpha),
+            (&mut self.t_g, t_g),
+            (&mut self.t_l, t_l),
+            (&mut self.m_g, m_g),
+            (&mut self.m_l, m_l),
+            (&mut self.e_g, e_g),
+            (&mut self.e_l, e_l),
+            (&mut self.volume_error, volume_error),
+            (&mut self.v_g, v_g),
+            (&mut self.v_l, v_l),
+            (&mut self.t_w, t_w),
+            (&mut self.e_w, e_w),
+            (&mut self.wall_heat_flux, wall_heat_flux),
+            (&mut self.wetted, wetted),
+        ] {
+            to.clone_from(from);
+        }
+        self.gas.clone_from(gas);
+        self.liquid.clone_from(liquid);
+        self.sat.clone_from(sat);
+        self.boundary_mass_flow = *boundary_mass_flow;
+        self.exit_resistance = *exit_resistance;
+        self.mixture.clone_from(mixture);
+    }
+}

@@ -112,7 +112,7 @@ pub use regime::{
 pub use state::{
     Local, Vapour, equilibrium_quality, mass_fluxes, regime_quality, static_quality, stratified_half_angle,
 };
-pub use wall_heat::{WallHeat, drop_contact_htc, drop_enhancement, wall_heat};
+pub use wall_heat::{WallHeat, WallHeatBasis, drop_contact_htc, drop_enhancement, wall_heat};
 
 /// Denominator floor for properties and lengths.
 const TINY: f64 = 1e-30;

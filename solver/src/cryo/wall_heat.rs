@@ -44,28 +44,78 @@ pub struct WallHeat {
 /// fraction is the smooth step of (T_w − T_s)/(T_onb − T_s): 0 with the wall at or below
 /// saturation, 1 from T_onb on (nucleate, transition and film boiling all evaporate liquid).
 pub fn wall_heat(s: &Local, p: &CryoParams, set: CorrelationSet, wetted: f64, regime: &Regime) -> WallHeat {
-    let w = if wetted.is_finite() { wetted.clamp(0.0, 1.0) } else { 0.0 };
-    // drops of a dispersed flow that reach the dry part of the wall
-    let h_drops = if s.t_w > s.t_l { (1.0 - w) * regime.dryout * drop_contact_htc(s, p) } else { 0.0 };
-    let curve = BoilingCurve::new(s, p, set);
-    let a = curve.anchors;
-    let (h_liquid, branch) = if s.t_w <= a.t_onb {
-        (curve.liquid.htc(s.t_w), WallRegime::Convection)
-    } else {
-        // T_w > T_onb ≥ T_l + 0.1 K here
-        let (q, branch) = curve.at(s.t_w);
-        (q / (s.t_w - s.t_l), branch)
-    };
-    let boiling_fraction = smooth_step((s.t_w - s.t_sat) / (a.t_onb - s.t_sat).max(1e-6));
-    WallHeat {
-        h_wg: (1.0 - w) * gas_convection_htc(s, p, s.t_w) * drop_enhancement(s, p, regime),
-        h_wl: w * h_liquid + h_drops,
-        boiling_fraction,
-        q_chf: a.q_chf,
-        t_chf: a.t_chf,
-        t_mfb: a.t_mfb,
-        t_onb: a.t_onb,
-        regime: if w < 1e-3 { WallRegime::Dry } else { branch },
+    WallHeatBasis::new(s, p, set, regime).at(wetted)
+}
+
+/// The part of [`wall_heat`] that does not depend on the wetted fraction: the boiling curve at
+/// the wall temperature, the dry wall's gas convection and the drops' contact, evaluated once
+/// for a state whose wetted fraction is still to be set (the scheme's steps from one state
+/// differ in their wetted fraction alone). [`WallHeatBasis::at`] gives the same numbers, to
+/// the bit, as [`wall_heat`] at the same wetted fraction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WallHeatBasis {
+    /// The drops' contact coefficient times the regime's dryout weight, as its two factors
+    /// (none with the wall at or below the liquid's temperature).
+    drops: Option<(f64, f64)>,
+    /// The liquid-covered wall's coefficient q(T_w)/(T_w − T_l) (h_cb(T_w) in the convective
+    /// branch) and the branch.
+    h_liquid: f64,
+    branch: WallRegime,
+    /// The dry wall's gas convection and the drops' enhancement of it.
+    h_gas: f64,
+    enhancement: f64,
+    boiling_fraction: f64,
+    q_chf: f64,
+    t_chf: f64,
+    t_mfb: f64,
+    t_onb: f64,
+}
+
+impl WallHeatBasis {
+    /// The wetted-fraction-free part of [`wall_heat`] at the state `s` in the flow `regime`.
+    pub fn new(s: &Local, p: &CryoParams, set: CorrelationSet, regime: &Regime) -> Self {
+        // drops of a dispersed flow that reach the dry part of the wall
+        let drops = (s.t_w > s.t_l).then(|| (regime.dryout, drop_contact_htc(s, p)));
+        let curve = BoilingCurve::new(s, p, set);
+        let a = curve.anchors;
+        let (h_liquid, branch) = if s.t_w <= a.t_onb {
+            (curve.liquid.htc(s.t_w), WallRegime::Convection)
+        } else {
+            // T_w > T_onb ≥ T_l + 0.1 K here
+            let (q, branch) = curve.at(s.t_w);
+            (q / (s.t_w - s.t_l), branch)
+        };
+        Self {
+            drops,
+            h_liquid,
+            branch,
+            h_gas: gas_convection_htc(s, p, s.t_w),
+            enhancement: drop_enhancement(s, p, regime),
+            boiling_fraction: smooth_step((s.t_w - s.t_sat) / (a.t_onb - s.t_sat).max(1e-6)),
+            q_chf: a.q_chf,
+            t_chf: a.t_chf,
+            t_mfb: a.t_mfb,
+            t_onb: a.t_onb,
+        }
+    }
+
+    /// [`wall_heat`] with liquid-covered perimeter fraction `wetted`.
+    pub fn at(&self, wetted: f64) -> WallHeat {
+        let w = if wetted.is_finite() { wetted.clamp(0.0, 1.0) } else { 0.0 };
+        let h_drops = match self.drops {
+            Some((dryout, contact)) => (1.0 - w) * dryout * contact,
+            None => 0.0,
+        };
+        WallHeat {
+            h_wg: (1.0 - w) * self.h_gas * self.enhancement,
+            h_wl: w * self.h_liquid + h_drops,
+            boiling_fraction: self.boiling_fraction,
+            q_chf: self.q_chf,
+            t_chf: self.t_chf,
+            t_mfb: self.t_mfb,
+            t_onb: self.t_onb,
+            regime: if w < 1e-3 { WallRegime::Dry } else { self.branch },
+        }
     }
 }
 

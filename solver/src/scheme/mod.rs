@@ -293,6 +293,12 @@ impl<'a> Scheme<'a> {
     /// The phases of a step in order (see the module documentation), passing their results on
     /// in the work arrays `w`. The first phase that fails rejects the step.
     fn phases(&self, st: &StepInput, w: &mut Work) -> Result<(State, StepReport), Rejection> {
+        if !w.old_state.holds(st.s) {
+            w.old_state.keep(st.s);
+            w.old_cells.clear();
+            w.old_junctions.clear(st.n + 1);
+            w.storage_kept = false;
+        }
         // step 1: provisional velocities, the pressure equation, the new velocities; a checked
         // exit starts from the resistance the last step left it (`choking.rs`)
         self.old_time_sources(st, w);
@@ -591,6 +597,18 @@ struct Work {
     bscr: Vec<Matrix4<f64>>,
     /// Per cell: the linearised sources at the old state (`old_time_sources`).
     sources: Vec<Sources>,
+    /// The state the closures in `old_cells` and `old_junctions` were evaluated at (`phases`
+    /// empties them for another).
+    old_state: OldStateKey,
+    /// Per cell: the closures at the old state that the step's length does not change
+    /// (`old_time_sources`; kept from one attempt to the next from the same state).
+    old_cells: Vec<sources::OldCell>,
+    /// Per junction: its momentum coefficients at the old state where the step's length does
+    /// not enter them (`momentum_predictor`; kept as `old_cells`).
+    old_junctions: momentum::OldJunctions,
+    /// Whether `storage`, `residual` and `corrected` hold the old state's (`pressure_equation`;
+    /// kept as `old_cells`).
+    storage_kept: bool,
     /// Per cell: the step-1 unknowns (δp, δα, δT_g, δT_l) (`pressure_solve`; before it, the
     /// pressure equation's right-hand sides, `pressure_equation`).
     x: Vec<Vector4<f64>>,
@@ -619,6 +637,34 @@ impl std::ops::AddAssign for EdgeMove {
 /// work at.
 fn new_pressure(s: &State, w: &Work, i: usize) -> f64 {
     s.p[i] + w.x[i][0]
+}
+
+/// The old state of the closures kept in the work arrays from one attempt at a step to the next
+/// (`Work::old_cells`, `Work::old_junctions`): a step tried again from the same state (after a
+/// rejection, at a shorter length) takes them as they are.
+///
+/// Decision: the state is recognised by its contents (every field equal), not by its time, so
+/// that no caller reaches closures kept for another state at the same time. The comparison and
+/// the copy cost about what one copy of the state does, against a fifth of an attempt's work
+/// that a retry is spared.
+#[derive(Debug, Clone, Default)]
+struct OldStateKey {
+    state: Option<State>,
+}
+
+impl OldStateKey {
+    /// Whether the kept closures are those of `s`.
+    fn holds(&self, s: &State) -> bool {
+        self.state.as_ref().is_some_and(|k| k == s)
+    }
+
+    /// Records `s` as the state of the kept closures.
+    fn keep(&mut self, s: &State) {
+        match &mut self.state {
+            Some(k) => k.copy_from(s),
+            None => self.state = Some(s.clone()),
+        }
+    }
 }
 
 /// Sizes the work arrays for `n` cells (`n + 1` junctions).

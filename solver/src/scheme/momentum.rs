@@ -39,7 +39,18 @@ impl Scheme<'_> {
                 continue;
             }
             let s = st.s;
-            let jc = self.junction_coefficients(st, j, grav);
+            let jc = match w.old_junctions.get(j) {
+                Some(jc) => jc,
+                None => {
+                    let jc = self.junction_coefficients(st, j, grav);
+                    // the step's length and a choked exit's resistance enter only the
+                    // boundary junctions' coefficients
+                    if j > 0 && j < st.n {
+                        w.old_junctions.keep(j, jc);
+                    }
+                    jc
+                }
+            };
             let (mut diag, mut rhs) = jc.momentum_block(s.v_g[j], s.v_l[j], st.dt, self.grid.dx_junction(j));
             let gamma = self.phase_change_momentum(st, &w.sources, j, &mut diag, &mut rhs);
             w.mech[j] = self.implicit_convection(st, w, j, &jc, &mut diag);
@@ -709,6 +720,32 @@ fn boundary_mass_flux(b: &JunctionState, c: &JunctionState, v_g: f64, v_l: f64, 
     let gas = if u_g > 0.0 { b.alpha * b.rho_g } else { c.alpha * c.rho_g };
     let liquid = if u_l > 0.0 { (1.0 - b.alpha) * b.rho_l } else { (1.0 - c.alpha) * c.rho_l };
     gas * u_g + liquid * u_l
+}
+
+/// Per junction: its [`JunctionCoefficients`] at the old state where neither the step's length
+/// nor a choked exit's resistance enters them (the junctions inside the line), kept from one
+/// attempt at a step to the next from the same state (`Work::old_state`).
+#[derive(Debug, Clone, Default)]
+pub(super) struct OldJunctions {
+    kept: Vec<Option<JunctionCoefficients>>,
+}
+
+impl OldJunctions {
+    /// Forgets every junction's coefficients (another state), for `nj` junctions.
+    pub(super) fn clear(&mut self, nj: usize) {
+        self.kept.clear();
+        self.kept.resize(nj, None);
+    }
+
+    fn get(&self, j: usize) -> Option<JunctionCoefficients> {
+        self.kept.get(j).copied().flatten()
+    }
+
+    fn keep(&mut self, j: usize, jc: JunctionCoefficients) {
+        if let Some(k) = self.kept.get_mut(j) {
+            *k = Some(jc);
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy)]

@@ -20,10 +20,14 @@ impl Scheme<'_> {
     ///
     /// Each cell's storage terms, residuals and corrected share come first
     /// ([`Scheme::storage`]): the donor-cell fluxes take the donors' contents at the new time,
-    /// linear in the donor cell's unknowns ([`donor_contents`]).
+    /// linear in the donor cell's unknowns ([`donor_contents`]). They are of the old state
+    /// alone, and kept for the next attempt from it (`w.storage_kept`, as `Work::old_cells`).
     pub(super) fn pressure_equation(&self, st: &StepInput, w: &mut Work) {
-        for i in 0..st.n {
-            self.storage(st.s, w, i);
+        if !w.storage_kept {
+            for i in 0..st.n {
+                self.storage(st.s, w, i);
+            }
+            w.storage_kept = true;
         }
         for i in 0..st.n {
             self.cell_system(st, w, i);

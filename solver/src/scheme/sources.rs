@@ -14,10 +14,20 @@ impl Scheme<'_> {
     /// Sources of every cell at the old state (the momentum predictor needs their Γ): the
     /// interphase and wall heat and mass transfer linearised in the cell unknowns, into
     /// `w.sources`, and each cell's new wetted fraction, into `w.wetted`.
+    ///
+    /// The closures' part that does not depend on the step's length ([`OldCell`]) is kept for
+    /// the next attempt from the same state (`Work::old_cells`, emptied for another state): a
+    /// rejected step's retry evaluates only what its shorter step changes.
     pub(super) fn old_time_sources(&self, st: &StepInput, w: &mut Work) {
+        if w.old_cells.is_empty() {
+            for i in 0..st.n {
+                let cell = self.old_cell(st.s, i);
+                w.old_cells.push(cell);
+            }
+        }
         for i in 0..st.n {
             let entering = entering_liquid_temperature(st, i);
-            let (src, wetted) = self.sources(st.s, i, st.dt, entering);
+            let (src, wetted) = self.sources(st.s, i, st.dt, entering, &w.old_cells[i]);
             w.sources[i] = src;
             w.wetted[i] = wetted;
         }
@@ -127,9 +137,8 @@ impl Scheme<'_> {
     /// coupling ([`Scheme::wall_coupling`]), then the phase change between the phases and at the
     /// wall ([`Scheme::phase_change_sources`]) or, without one, a plain exchange of heat
     /// ([`Scheme::exchange_sources`]).
-    fn sources(&self, s: &State, i: usize, dt: f64, entering_t_l: f64) -> (Sources, f64) {
+    fn sources(&self, s: &State, i: usize, dt: f64, entering_t_l: f64, old: &OldCell) -> (Sources, f64) {
         let ph = &self.physics;
-        let cp = &ph.cryo;
         let a = s.alpha[i];
         let pres_g = presence(a, ph.cryo.blend_min, ph.cryo.blend_max);
         let pres_l = presence(liquid_share(s, i), ph.cryo.blend_min, ph.cryo.blend_max);
@@ -137,6 +146,22 @@ impl Scheme<'_> {
         let liq_here = present(s.m_l[i], s.m_g[i]);
         let tg = Lin::var(s.t_g[i], 2);
         let tl = Lin::var(s.t_l[i], 3);
+        let cell = CellView { s, i, dt, old, gas_here, liq_here, pres_g, pres_l, tg, tl, entering_t_l };
+        let (wall, wetted) = self.wall_coupling(&cell);
+        let sources = match &old.interphase {
+            Some(iph) => self.phase_change_sources(&cell, &wall, iph),
+            None => self.exchange_sources(&cell, &wall),
+        };
+        (sources, wetted)
+    }
+
+    /// The closures of cell `i` at the old state `s` that do not depend on the step's length
+    /// ([`OldCell`]).
+    fn old_cell(&self, s: &State, i: usize) -> OldCell {
+        let ph = &self.physics;
+        let cp = &ph.cryo;
+        let gas_here = present(s.m_g[i], s.m_l[i]);
+        let liq_here = present(s.m_l[i], s.m_g[i]);
         let sat = s.sat[i];
         let has_sat = sat.h_lg > 0.0;
         let mut local = self.local(s, i);
@@ -144,17 +169,24 @@ impl Scheme<'_> {
             local = local.with_boiling_basis(self.fluid);
         }
         let regime = cryo::flow_regime(&local, cp, s.wall_heat_flux[i]);
-        let cell = CellView { s, i, dt, local, regime, gas_here, liq_here, pres_g, pres_l, tg, tl, entering_t_l };
-        let (wall, wetted) = self.wall_coupling(&cell);
+        // The wetted fraction relaxes towards its regime value (`wall_coupling`), never below
+        // the perimeter the liquid covers by geometry alone.
+        let w_eq = if liq_here { cryo::wetted_fraction(&local, &regime) } else { 0.0 };
+        let w_geometric =
+            if liq_here { cryo::stratified_half_angle(1.0 - s.alpha[i]) / std::f64::consts::PI } else { 0.0 };
+        let wall = (ph.wall_heat_transfer && ph.fixed_wall_htc.is_none())
+            .then(|| cryo::WallHeatBasis::new(&local, cp, ph.correlations, &regime));
         // Liquid above its saturation temperature flashes even where no vapour is left
         // (cryo::flashing_htc: bubbles nucleate): the vapour it makes starts the gas phase.
         let flashing = liq_here && has_sat && s.t_l[i] > sat.t_sat;
-        let sources = if ph.phase_change && has_sat && liq_here && (gas_here || flashing) {
-            self.phase_change_sources(&cell, &wall)
-        } else {
-            self.exchange_sources(&cell, &wall)
-        };
-        (sources, wetted)
+        let interphase = (ph.phase_change && has_sat && liq_here && (gas_here || flashing)).then(|| {
+            if ph.interphase_heat_transfer {
+                cryo::interphase_heat(&local, cp, &regime)
+            } else {
+                cryo::Interphase { h_ig: 0.0, h_il: 0.0 }
+            }
+        });
+        OldCell { local, w_eq, w_geometric, wall, interphase }
     }
 
     /// The wall's heat to the gas and the liquid and from the ambient, linear in the cell
@@ -162,7 +194,7 @@ impl Scheme<'_> {
     fn wall_coupling(&self, cell: &CellView) -> (WallCoupling, f64) {
         let (g, ph, s, i, dt) = (&self.grid, &self.physics, cell.s, cell.i, cell.dt);
         let cp = &ph.cryo;
-        let (local, regime) = (&cell.local, &cell.regime);
+        let local = &cell.old.local;
         let a = s.alpha[i];
         let b = 1.0 - a;
         let v = g.volume[i];
@@ -174,18 +206,21 @@ impl Scheme<'_> {
         // drying); without the floor, a large tauw keeps the wall of a cell that has filled with
         // liquid heating only the few per cent of vapour left in it, which is not physical and
         // drives the cell to runaway pressures.
-        let w_eq = if liq_here { cryo::wetted_fraction(local, regime) } else { 0.0 };
-        let w_geometric = if liq_here { cryo::stratified_half_angle(b) / std::f64::consts::PI } else { 0.0 };
+        let (w_eq, w_geometric) = (cell.old.w_eq, cell.old.w_geometric);
         let wetted =
             (w_eq + (s.wetted[i] - w_eq) * (-dt / cp.wetting_time_constant.max(1e-9)).exp()).max(w_geometric.min(w_eq));
         // wall heat transfer coefficients per unit fluid volume
         let per_vol = g.perimeter[i] / g.area_cell[i];
         let (hw_g, hw_l, boiling) = if ph.wall_heat_transfer {
-            match ph.fixed_wall_htc {
-                Some(h) => (h * per_vol * a, h * per_vol * b, 0.0),
-                None => {
-                    let wh = cryo::wall_heat(local, cp, ph.correlations, wetted, regime);
+            // the closures' basis wherever no fixed coefficient stands in (`old_cell`)
+            match &cell.old.wall {
+                Some(basis) => {
+                    let wh = basis.at(wetted);
                     (wh.h_wg * per_vol, wh.h_wl * per_vol, wh.boiling_fraction)
+                }
+                None => {
+                    let h = ph.fixed_wall_htc.unwrap_or(0.0);
+                    (h * per_vol * a, h * per_vol * b, 0.0)
                 }
             }
         } else {
@@ -213,7 +248,7 @@ impl Scheme<'_> {
 
     /// The sources of a cell with phase change: evaporation at the wall and heat and mass
     /// transfer at the interface, each limited by the mass of the phase it takes from.
-    fn phase_change_sources(&self, cell: &CellView, wall: &WallCoupling) -> Sources {
+    fn phase_change_sources(&self, cell: &CellView, wall: &WallCoupling, iph: &cryo::Interphase) -> Sources {
         let (ph, s, i, dt) = (&self.physics, cell.s, cell.i, cell.dt);
         let cp = &ph.cryo;
         let (gp, lp) = (&s.gas[i], &s.liquid[i]);
@@ -233,11 +268,6 @@ impl Scheme<'_> {
         s_l = s_l.sub(g_w.scale(sat.h_g));
         s_g = s_g.add(g_w.scale(sat.h_g));
         // interface: Γ_ig = −(q_ig + q_il)/(h*_g − h*_l), Gisc scaling the exchange
-        let iph = if ph.interphase_heat_transfer {
-            cryo::interphase_heat(&cell.local, cp, &cell.regime)
-        } else {
-            cryo::Interphase { h_ig: 0.0, h_il: 0.0 }
-        };
         let scale = cp.interface_mass_transfer_scale;
         let ts = Lin { c0: sat.t_sat, c: [sat.dt_sat_dp, 0.0, 0.0, 0.0] };
         // Vapour below its saturation temperature is metastable and condenses on the liquid
@@ -318,9 +348,8 @@ struct CellView<'a> {
     s: &'a State,
     i: usize,
     dt: f64,
-    /// The closures' view of the cell (with the boiling bases where the wall boils).
-    local: cryo::Local,
-    regime: cryo::Regime,
+    /// The closures at the old state.
+    old: &'a OldCell,
     /// Whether the gas and the liquid are present ([`present`]).
     gas_here: bool,
     /// See `gas_here`.
@@ -569,4 +598,20 @@ fn entering_liquid_temperature(st: &StepInput, i: usize) -> f64 {
             None => (boundary.alpha < 1.0).then_some(boundary.t_l),
         })
         .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// What the closures give for a cell at the old state whatever the step's length: the
+/// closures' view of the cell (with the boiling bases where the wall boils), the equilibrium
+/// and geometric floor of its wetted fraction (from its flow regime), the wall's heat transfer before the
+/// wetted fraction is set ([`cryo::WallHeatBasis`]) and, in a cell with phase change, the
+/// interface's coefficients.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct OldCell {
+    local: cryo::Local,
+    w_eq: f64,
+    w_geometric: f64,
+    /// `None` where the wall's heat is not from the closures (none, or a fixed coefficient).
+    wall: Option<cryo::WallHeatBasis>,
+    /// `None` in a cell without phase change ([`Scheme::exchange_sources`]).
+    interphase: Option<cryo::Interphase>,
 }
