@@ -387,7 +387,7 @@ pub fn run_logged(
     let t = &case.time;
     let end = t.end_s;
     let clock = Instant::now();
-    let boundaries = Boundaries { case, fluid, p_guess: s.p[0] };
+    let mut boundaries = Boundaries { case, fluid, p_guess: s.p[0], last: None };
     let inlet_tl = boundary_state(&case.inlet, 0.0, fluid, boundaries.p_guess)?.t_l;
     let stations: Vec<Station> = case.stations.iter().map(|st| Station::new(&grid, &st.name, st.x_m)).collect();
     let eps = OUTPUT_TIME_TOLERANCE * end;
@@ -406,7 +406,7 @@ pub fn run_logged(
         check_limits(t, controller.steps(), &clock, s.time)?;
         // the steps land on the end time only: the outputs between are interpolated
         // (`observers::weight_at` says why)
-        let (mut next, h, report) = advance(&mut scheme, &mut controller, &s, end, &boundaries, log)?;
+        let (mut next, h, report) = advance(&mut scheme, &mut controller, &s, end, &mut boundaries, log)?;
         observers.iter_mut().for_each(|o| o.on_step(h, &report));
         // a step that lands on the end to within rounding lands on it exactly
         if (next.time - end).abs() <= eps {
@@ -460,7 +460,7 @@ fn advance(
     controller: &mut StepController,
     s: &State,
     target: f64,
-    boundaries: &Boundaries,
+    boundaries: &mut Boundaries,
     log: &mut dyn FnMut(StepAttempt),
 ) -> Result<(State, f64, StepReport), SimError> {
     let (mut h, mut cap) = controller.proposal(s, &scheme.grid, target);
@@ -510,16 +510,26 @@ struct Boundaries<'a> {
     case: &'a Case,
     fluid: &'a FluidTable,
     p_guess: f64,
+    /// The states last asked for and their time: an accepted step's new time is the next
+    /// step's old time, at which they are asked for again.
+    last: Option<(f64, [BoundaryState; 2])>,
 }
 
 impl Boundaries<'_> {
     /// The inlet and outlet states at `time`.
-    fn at(&self, time: f64) -> Result<[BoundaryState; 2], SimError> {
+    fn at(&mut self, time: f64) -> Result<[BoundaryState; 2], SimError> {
+        if let Some((t, states)) = self.last
+            && t == time
+        {
+            return Ok(states);
+        }
         let (case, fluid, p_guess) = (self.case, self.fluid, self.p_guess);
-        Ok([
+        let states = [
             boundary_state(&case.inlet, time, fluid, p_guess)?,
             boundary_state(&case.outlet, time, fluid, s_last_p(&case.outlet, p_guess))?,
-        ])
+        ];
+        self.last = Some((time, states));
+        Ok(states)
     }
 }
 
@@ -567,7 +577,7 @@ mod tests {
     fn step_error(case: &Case, fluid: &FluidTable, s: &State, h: f64) -> Result<f64, Rejection> {
         let physics = physics_of(case, &case_parameters(case).unwrap(), fluid);
         let mut scheme = Scheme::new(fluid, Grid::from_case(case), physics);
-        let boundaries = Boundaries { case, fluid, p_guess: s.p[0] };
+        let mut boundaries = Boundaries { case, fluid, p_guess: s.p[0], last: None };
         let (b0, b1) = (boundaries.at(s.time).unwrap(), boundaries.at(s.time + h).unwrap());
         let (next, _) = scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]])?;
         Ok(next.volume_error.iter().fold(0.0, |m: f64, e| m.max(e.abs())))
@@ -607,9 +617,9 @@ mod tests {
         case.time.end_s = 30.0;
         let s = run(&case, fluid, &case_parameters(&case).unwrap(), &mut |_| {}).unwrap().final_state;
         let physics = physics_of(&case, &case_parameters(&case).unwrap(), fluid);
-        let boundaries = Boundaries { case: &case, fluid, p_guess: s.p[0] };
+        let at = |t: f64| Boundaries { case: &case, fluid, p_guess: s.p[0], last: None }.at(t).unwrap();
         let step = |scheme: &mut Scheme, s: &State, h: f64| {
-            let (b0, b1) = (boundaries.at(s.time).unwrap(), boundaries.at(s.time + h).unwrap());
+            let (b0, b1) = (at(s.time), at(s.time + h));
             scheme.step(s, h, [&b0[0], &b0[1]], [&b1[0], &b1[1]])
         };
         let fresh = |s: &State, h: f64| step(&mut Scheme::new(fluid, Grid::from_case(&case), physics.clone()), s, h);
