@@ -645,8 +645,9 @@ fn new_pressure(s: &State, w: &Work, i: usize) -> f64 {
 ///
 /// Decision: the state is recognised by its contents (every field equal), not by its time, so
 /// that no caller reaches closures kept for another state at the same time. The comparison and
-/// the copy cost about what one copy of the state does, against a fifth of an attempt's work
-/// that a retry is spared.
+/// the copy cost about what one copy of the state does, against about a third of an attempt's
+/// work that a retry is spared (the subcooled NBS run: 112 M instructions over its 414 retries
+/// and 70 repeated passes of step 1 at its choked exit, of 650 k per attempt).
 #[derive(Debug, Clone, Default)]
 struct OldStateKey {
     state: Option<State>,
