@@ -142,8 +142,7 @@ impl Scheme<'_> {
         let a = s.alpha[i];
         let pres_g = presence(a, ph.cryo.blend_min, ph.cryo.blend_max);
         let pres_l = presence(liquid_share(s, i), ph.cryo.blend_min, ph.cryo.blend_max);
-        let gas_here = present(s.m_g[i], s.m_l[i]);
-        let liq_here = present(s.m_l[i], s.m_g[i]);
+        let (gas_here, liq_here) = (old.gas_here, old.liq_here);
         let tg = Lin::var(s.t_g[i], 2);
         let tl = Lin::var(s.t_l[i], 3);
         let cell = CellView { s, i, dt, old, gas_here, liq_here, pres_g, pres_l, tg, tl, entering_t_l };
@@ -186,7 +185,7 @@ impl Scheme<'_> {
                 cryo::Interphase { h_ig: 0.0, h_il: 0.0 }
             }
         });
-        OldCell { local, w_eq, w_geometric, wall, interphase }
+        OldCell { local, gas_here, liq_here, w_eq, w_geometric, wall, interphase }
     }
 
     /// The wall's heat to the gas and the liquid and from the ambient, linear in the cell
@@ -601,13 +600,18 @@ fn entering_liquid_temperature(st: &StepInput, i: usize) -> f64 {
 }
 
 /// What the closures give for a cell at the old state whatever the step's length: the
-/// closures' view of the cell (with the boiling bases where the wall boils), the equilibrium
+/// closures' view of the cell (with the boiling bases where the wall boils), which phases are
+/// present, the equilibrium
 /// and geometric floor of its wetted fraction (from its flow regime), the wall's heat transfer before the
 /// wetted fraction is set ([`cryo::WallHeatBasis`]) and, in a cell with phase change, the
 /// interface's coefficients.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct OldCell {
     local: cryo::Local,
+    /// Whether the gas and the liquid are present ([`present`]).
+    gas_here: bool,
+    /// See `gas_here`.
+    liq_here: bool,
     w_eq: f64,
     w_geometric: f64,
     /// `None` where the wall's heat is not from the closures (none, or a fixed coefficient).
