@@ -601,10 +601,9 @@ fn entering_liquid_temperature(st: &StepInput, i: usize) -> f64 {
 
 /// What the closures give for a cell at the old state whatever the step's length: the
 /// closures' view of the cell (with the boiling bases where the wall boils), which phases are
-/// present, the equilibrium
-/// and geometric floor of its wetted fraction (from its flow regime), the wall's heat transfer before the
-/// wetted fraction is set ([`cryo::WallHeatBasis`]) and, in a cell with phase change, the
-/// interface's coefficients.
+/// present, the equilibrium and geometric floor of its wetted fraction (from its flow regime),
+/// the wall's heat transfer before the wetted fraction is set ([`cryo::WallHeatBasis`]) and, in
+/// a cell with phase change, the interface's coefficients.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct OldCell {
     local: cryo::Local,
