@@ -146,10 +146,21 @@ pub struct PipeSection {
     pub inclination_deg: Profile,
     /// Number of cells.
     pub cells: usize,
+    /// Grading of the cells towards the line's ends: the middle cell is this many times as long
+    /// as the first and the last, the lengths growing geometrically from each end to the middle
+    /// (1, the default: equal cells). The ends are where a coarse grid errs most: the inlet's
+    /// quench front and the exit's expansion, whose pressure work the donor-cell scheme takes to
+    /// first order in the cell (VALIDATION.md, "Each fluid alone on 120 cells").
+    #[serde(default = "one")]
+    pub grading: f64,
 }
 
 fn zero_profile() -> Profile {
     Profile::Constant(0.0)
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// Boundary kinds of `[inlet]` and `[outlet]`.
@@ -393,6 +404,12 @@ impl Case {
         if !(2..=100_000).contains(&p.cells) {
             return Err(format!("pipe.cells = {}: must be between 2 and 100000", p.cells));
         }
+        if !(p.grading.is_finite() && (1.0..=100.0).contains(&p.grading)) {
+            return Err(format!(
+                "pipe.grading = {}: must be between 1 (equal cells) and 100 (the middle cell 100 times the end cells)",
+                p.grading
+            ));
+        }
         self.boundary("inlet", &self.inlet)?;
         self.boundary("outlet", &self.outlet)?;
         let i = &self.initial;
@@ -613,6 +630,10 @@ x_m = 5.0
         assert!(e.contains("colour") && e.contains("line"), "{e}");
         let e = error_of(&GOOD.replace("length_m = 10.0", "length_m = -10.0"));
         assert!(e.contains("pipe.length_m"), "{e}");
+        for bad in ["0.5", "101.0", "nan"] {
+            let e = error_of(&GOOD.replace("cells = 20", &format!("cells = 20\ngrading = {bad}")));
+            assert!(e.contains("pipe.grading") && e.contains("between 1"), "{bad}: {e}");
+        }
         let e = error_of(&GOOD.replace("[ambient]\ntemperature_k = 290.0\n", ""));
         assert!(e.contains("ambient"), "{e}");
         let e = error_of(&GOOD.replace("\"nitrogen\"", "\"helium\""));

@@ -48,21 +48,28 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// Builds a grid of equal cells from a case. The diameter may change from cell to cell; a
-    /// junction between cells of different area takes the smaller area (the throat).
+    /// Builds a grid from a case: equal cells, or cells graded towards the ends
+    /// ([`cell_lengths`]). The diameter may change from cell to cell; a junction between cells of
+    /// different area takes the smaller area (the throat).
     pub fn from_case(case: &Case) -> Self {
         let p = &case.pipe;
         let n = p.cells;
-        let dx = p.length_m / n as f64;
+        let dx = cell_lengths(p.length_m, n, p.grading);
         let material = case.wall_material();
-        let x_cell: Vec<f64> = (0..n).map(|i| (i as f64 + 0.5) * dx).collect();
+        let x_junction = junction_positions(&dx, p.length_m);
+        let x_cell: Vec<f64> = if dx.iter().all(|&d| d == dx[0]) {
+            (0..n).map(|i| (i as f64 + 0.5) * dx[0]).collect()
+        } else {
+            (0..n).map(|i| 0.5 * (x_junction[i] + x_junction[i + 1])).collect()
+        };
         let d: Vec<f64> = x_cell.iter().map(|&x| p.inner_diameter_m.step_at(x)).collect();
         let area_cell: Vec<f64> = d.iter().map(|d| std::f64::consts::PI * d * d / 4.0).collect();
         let area_junction: Vec<f64> =
             (0..=n).map(|j| area_cell[j.saturating_sub(1)].min(area_cell[j.min(n - 1)])).collect();
         let wall_mass = d
             .iter()
-            .map(|d| {
+            .zip(&dx)
+            .map(|(d, dx)| {
                 let d_out = d + 2.0 * p.wall_thickness_m;
                 material.density_kg_m3() * std::f64::consts::PI * (d_out * d_out - d * d) / 4.0 * dx
             })
@@ -77,13 +84,17 @@ impl Grid {
             .collect();
         Self {
             n,
-            dx: vec![dx; n],
-            x_junction: (0..=n).map(|j| j as f64 * dx).collect(),
-            volume: area_cell.iter().map(|a| a * dx).collect(),
+            volume: area_cell.iter().zip(&dx).map(|(a, dx)| a * dx).collect(),
+            outer_area: d
+                .iter()
+                .zip(&dx)
+                .map(|(d, dx)| std::f64::consts::PI * (d + 2.0 * p.wall_thickness_m) * dx)
+                .collect(),
+            dx,
+            x_junction,
             area_cell,
             area_junction,
             perimeter: d.iter().map(|d| std::f64::consts::PI * d).collect(),
-            outer_area: d.iter().map(|d| std::f64::consts::PI * (d + 2.0 * p.wall_thickness_m) * dx).collect(),
             relative_roughness: d.iter().map(|d| p.roughness_m / d).collect(),
             d_h: d,
             x_cell,
@@ -106,11 +117,46 @@ impl Grid {
         0.5 * (l + r)
     }
 
-    /// The cell holding `x` (clamped to the line).
+    /// The cell holding `x` (clamped to the line; a junction's position belongs to the cell
+    /// downstream of it).
     pub fn cell_at(&self, x: f64) -> usize {
-        let dx = self.dx[0];
-        ((x / dx).floor().max(0.0) as usize).min(self.n - 1)
+        let past = self.x_junction[1..self.n].partition_point(|&xj| xj <= x);
+        past.min(self.n - 1)
     }
+}
+
+/// The lengths of `n` cells over `length` m, the middle cell `grading` times as long as the end
+/// cells ([`crate::case::PipeSection::grading`]). Equal cells for a grading of 1, each
+/// `length / n` exactly; otherwise lengths l₀ q^min(i, n−1−i), the ratio q from cell to cell
+/// such that the middle cell (the two middle cells of an even count) is `grading` l₀, and l₀
+/// such that they sum to `length`.
+pub fn cell_lengths(length: f64, n: usize, grading: f64) -> Vec<f64> {
+    if grading == 1.0 || n < 3 {
+        return vec![length / n as f64; n];
+    }
+    let steps = (n - 1) / 2;
+    let q = grading.powf(1.0 / steps as f64);
+    let shape: Vec<f64> = (0..n).map(|i| q.powi(i.min(n - 1 - i) as i32)).collect();
+    let l0 = length / shape.iter().sum::<f64>();
+    shape.iter().map(|s| l0 * s).collect()
+}
+
+/// The junctions' positions from the cells' lengths: 0, then the running sum, the last set to
+/// `length` exactly; for equal cells j · (length / n), as the grid always had them.
+fn junction_positions(dx: &[f64], length: f64) -> Vec<f64> {
+    let n = dx.len();
+    if dx.iter().all(|&d| d == dx[0]) {
+        return (0..=n).map(|j| j as f64 * dx[0]).collect();
+    }
+    let mut x = Vec::with_capacity(n + 1);
+    let mut sum = 0.0;
+    x.push(0.0);
+    for d in &dx[..n - 1] {
+        sum += d;
+        x.push(sum);
+    }
+    x.push(length);
+    x
 }
 
 /// The fluid state on one side of a boundary junction, at one time.
@@ -321,5 +367,49 @@ impl State {
         self.boundary_mass_flow = *boundary_mass_flow;
         self.exit_resistance = *exit_resistance;
         self.mixture.clone_from(mixture);
+    }
+}
+
+#[cfg(test)]
+mod grid_tests {
+    use super::*;
+
+    #[test]
+    fn graded_cells_fill_the_line_symmetrically_at_the_grading() {
+        for (n, grading) in [(30, 8.0), (31, 4.0), (3, 2.0), (40, 100.0)] {
+            let dx = cell_lengths(61.0, n, grading);
+            assert_eq!(dx.len(), n);
+            assert!((dx.iter().sum::<f64>() - 61.0).abs() < 1e-12, "{n} cells: {}", dx.iter().sum::<f64>());
+            for i in 0..n {
+                assert!((dx[i] - dx[n - 1 - i]).abs() <= 1e-12 * dx[i], "{n} cells: cell {i}");
+            }
+            let middle = dx[(n - 1) / 2];
+            assert!((middle / dx[0] - grading).abs() < 1e-9 * grading, "{n} cells: {}", middle / dx[0]);
+            assert!(dx.windows(2).take((n - 1) / 2).all(|w| w[1] > w[0]), "{n} cells grow towards the middle");
+        }
+        // a grading of 1 is the equal cells the grid always had, to the bit
+        assert_eq!(cell_lengths(61.0, 30, 1.0), vec![61.0 / 30.0; 30]);
+    }
+
+    #[test]
+    fn a_graded_grid_places_its_cells_and_finds_them() {
+        let mut case = crate::reference::Reference::GasCooldown.with_cells(30);
+        case.pipe.grading = 8.0;
+        let g = Grid::from_case(&case);
+        assert_eq!(g.x_junction[0], 0.0);
+        assert_eq!(g.x_junction[30], 61.0);
+        for i in 0..30 {
+            assert!((g.x_junction[i + 1] - g.x_junction[i] - g.dx[i]).abs() < 1e-12);
+            assert!(g.x_junction[i] < g.x_cell[i] && g.x_cell[i] < g.x_junction[i + 1]);
+            assert_eq!(g.cell_at(g.x_cell[i]), i);
+            assert_eq!(g.cell_at(g.x_junction[i]), i, "a junction belongs to the cell downstream of it");
+            assert!((g.volume[i] / g.dx[i] - g.area_cell[i]).abs() < 1e-15);
+        }
+        assert_eq!(g.cell_at(-1.0), 0);
+        assert_eq!(g.cell_at(70.0), 29);
+        // the wall's mass is the line's whatever the cells
+        let equal = Grid::from_case(&crate::reference::Reference::GasCooldown.with_cells(30));
+        let total = |g: &Grid| g.wall_mass.iter().sum::<f64>();
+        assert!((total(&g) / total(&equal) - 1.0).abs() < 1e-12);
     }
 }

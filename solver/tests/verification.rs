@@ -337,9 +337,9 @@ fn an_exit_valve_does_not_heat_the_gas_that_leaves_through_it() {
 
 /// The last cell's stagnation enthalpy above the inlet's, J/kg, and the mass flow through the
 /// exit, kg/s, of nitrogen gas at 280 K driven from 4.26 bar through the 61 m line into 0.83 bar
-/// (the NBS line at the drive of its subcooled runs) without wall heat, on `cells` cells after
-/// 10 s.
-fn fast_adiabatic_exit(cells: usize) -> (f64, f64) {
+/// (the NBS line at the drive of its subcooled runs) without wall heat, on `cells` cells graded
+/// by `grading` (1: equal cells) after 10 s.
+fn fast_adiabatic_exit(cells: usize, grading: f64) -> (f64, f64) {
     let text = Reference::GasCooldown
         .text()
         .replace(
@@ -355,10 +355,11 @@ fn fast_adiabatic_exit(cells: usize) -> (f64, f64) {
             "gas_temperature_k = 290.0\nwall_temperature_k = 290.0",
             "gas_temperature_k = 280.0\nwall_temperature_k = 280.0",
         )
-        .replace("cells = 30", &format!("cells = {cells}"))
+        .replace("cells = 30", &format!("cells = {cells}\ngrading = {grading:?}"))
         .replace("end_s = 1000.0", "end_s = 10.0")
         .replace("gravity = false", "gravity = false\nwall_heat_transfer = false");
     let case = cryofit_solver::case::Case::from_toml(&text, "fast_exit.toml").unwrap();
+    assert_eq!(case.pipe.grading, grading);
     let fluid = fluids::embedded("nitrogen").unwrap();
     let out = run(&case);
     let s = &out.final_state;
@@ -368,7 +369,7 @@ fn fast_adiabatic_exit(cells: usize) -> (f64, f64) {
     let excess = s.gas[n - 1].h + 0.5 * v * v - h0_in;
     let m_dot = s.gas[n - 1].rho * s.v_g[n] * Grid::from_case(&case).area_junction[n];
     println!(
-        "fast adiabatic exit, {cells} cells: first cell {:.2} K, last cell {:.2} K, exit {:.0} m/s, h0 excess {excess:.0} J/kg, {m_dot:.5} kg/s",
+        "fast adiabatic exit, {cells} cells graded {grading}: first cell {:.2} K, last cell {:.2} K, exit {:.0} m/s, h0 excess {excess:.0} J/kg, {m_dot:.5} kg/s",
         s.t_g[0],
         s.t_g[n - 1],
         s.v_g[n]
@@ -384,9 +385,9 @@ fn fast_adiabatic_gas_gains_stagnation_enthalpy_only_to_first_order_at_the_exit(
     // is first order in the cell, and at these exit speeds its error is the last cell's gas some
     // 15 K too warm on 30 cells (VALIDATION.md, "Each fluid alone on 120 cells"), where station 4
     // of the NBS line lies; it must shrink with the cell at least as fast as the cell
-    let (e30, m30) = fast_adiabatic_exit(30);
-    let (e60, m60) = fast_adiabatic_exit(60);
-    let (e120, m120) = fast_adiabatic_exit(120);
+    let (e30, m30) = fast_adiabatic_exit(30, 1.0);
+    let (e60, m60) = fast_adiabatic_exit(60, 1.0);
+    let (e120, m120) = fast_adiabatic_exit(120, 1.0);
     assert!(e30 > 0.0 && e30 < 25e3, "30 cells: the last cell's h0 is {e30} J/kg above the inlet's");
     assert!(e60.abs() <= 0.65 * e30, "60 cells: {e60} J/kg against {e30} on 30");
     assert!(e120.abs() <= 0.65 * e60.abs(), "120 cells: {e120} J/kg against {e60} on 60");
@@ -394,4 +395,15 @@ fn fast_adiabatic_gas_gains_stagnation_enthalpy_only_to_first_order_at_the_exit(
     for (cells, m) in [(30, m30), (60, m60)] {
         assert!((m / m120 - 1.0).abs() < 0.02, "{cells} cells: {m} kg/s against {m120} on 120");
     }
+}
+
+#[test]
+fn cells_graded_towards_the_ends_give_the_exit_a_fine_grids_answer() {
+    // the same flow on 30 cells graded by 8 (the end cells 0.56 m, the middle ones 4.5 m): the
+    // last cell is as short as on 120 equal cells, and so is its error
+    let (graded, m_graded) = fast_adiabatic_exit(30, 8.0);
+    let (e60, _) = fast_adiabatic_exit(60, 1.0);
+    let (_, m120) = fast_adiabatic_exit(120, 1.0);
+    assert!(graded.abs() < e60.abs(), "graded 30 cells: {graded} J/kg against {e60} on 60 equal cells");
+    assert!((m_graded / m120 - 1.0).abs() < 0.01, "graded: {m_graded} kg/s against {m120} on 120");
 }
