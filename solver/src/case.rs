@@ -148,7 +148,7 @@ pub struct PipeSection {
     pub cells: usize,
     /// Grading of the cells towards the line's ends: the middle cell is this many times as long
     /// as the first and the last, the lengths growing geometrically from each end to the middle
-    /// (1, the default: equal cells). The ends are where a coarse grid errs most: the inlet's
+    /// (1, the default: equal cells; a line of two cells stays equal). The ends are where a coarse grid errs most: the inlet's
     /// quench front and the exit's expansion, whose pressure work the donor-cell scheme takes to
     /// first order in the cell (VALIDATION.md, "Each fluid alone on 120 cells").
     #[serde(default = "one")]

@@ -126,8 +126,8 @@ impl Grid {
 }
 
 /// The lengths of `n` cells over `length` m, the middle cell `grading` times as long as the end
-/// cells ([`crate::case::PipeSection::grading`]). Equal cells for a grading of 1, each
-/// `length / n` exactly; otherwise lengths l₀ q^min(i, n−1−i), the ratio q from cell to cell
+/// cells ([`crate::case::PipeSection::grading`]). Equal cells for a grading of 1 (and for fewer
+/// than three cells, which have no middle to grow towards), each `length / n` exactly; otherwise lengths l₀ q^min(i, n−1−i), the ratio q from cell to cell
 /// such that the middle cell (the two middle cells of an even count) is `grading` l₀, and l₀
 /// such that they sum to `length`.
 pub fn cell_lengths(length: f64, n: usize, grading: f64) -> Vec<f64> {
